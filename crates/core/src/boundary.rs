@@ -1,0 +1,256 @@
+//! Boundary conditions on the grid: walls on the domain faces and rigid obstacles.
+//!
+//! Both act on the velocity of grid nodes after the momentum update, relative to the
+//! surface's own velocity, through one contact rule (stick, slip, Coulomb friction).
+
+use crate::math::Vector;
+use crate::scene::{Contact, ObstacleShape, Wall};
+
+/// Applies a contact rule to a relative velocity `v` at a surface with unit normal `n`
+/// pointing out of the solid.
+#[inline(always)]
+pub fn apply_contact<const D: usize>(v: &mut Vector<D>, n: &Vector<D>, contact: Contact) {
+    match contact {
+        Contact::Stick => *v = Vector::<D>::zeros(),
+        Contact::Slip => {
+            let vn = v.dot(n);
+            if vn < 0.0 {
+                *v -= n * vn;
+            }
+        }
+        Contact::Friction { coefficient } => {
+            let vn = v.dot(n);
+            if vn < 0.0 {
+                let vt = *v - n * vn;
+                let speed_t = vt.norm();
+                // Coulomb: the tangential speed is reduced by mu·|vn|, never reversed.
+                if speed_t <= -coefficient * vn || speed_t == 0.0 {
+                    *v = Vector::<D>::zeros();
+                } else {
+                    *v = vt * (1.0 + coefficient * vn / speed_t);
+                }
+            }
+        }
+    }
+}
+
+/// A wall resolved against the grid.
+#[derive(Clone, Copy, Debug)]
+struct WallRule {
+    axis: usize,
+    upper: bool,
+    thickness: usize,
+    contact: Contact,
+}
+
+/// Signed-distance description of a rigid obstacle at time 0.
+#[derive(Clone, Debug)]
+enum Solid<const D: usize> {
+    Plane { point: Vector<D>, normal: Vector<D> },
+    Box { min: Vector<D>, max: Vector<D> },
+    Sphere { center: Vector<D>, radius: f64 },
+    Cylinder { center: Vector<D>, axis: Vector<D>, radius: f64 },
+}
+
+impl<const D: usize> Solid<D> {
+    /// Signed distance (negative inside) and outward unit normal at `x`.
+    fn distance_and_normal(&self, x: &Vector<D>) -> (f64, Vector<D>) {
+        match self {
+            Solid::Plane { point, normal } => ((x - point).dot(normal), *normal),
+            Solid::Sphere { center, radius } => {
+                let r = x - center;
+                let len = r.norm();
+                let n = if len > 0.0 { r / len } else { unit::<D>(0) };
+                (len - radius, n)
+            }
+            Solid::Cylinder {
+                center,
+                axis,
+                radius,
+            } => {
+                let r = x - center;
+                let radial = r - axis * r.dot(axis);
+                let len = radial.norm();
+                let n = if len > 0.0 {
+                    radial / len
+                } else {
+                    unit::<D>(0)
+                };
+                (len - radius, n)
+            }
+            Solid::Box { min, max } => {
+                // Inside: distance to the nearest face; outside: Euclidean distance.
+                let mut outside = Vector::<D>::zeros();
+                let mut best = f64::NEG_INFINITY;
+                let mut best_normal = unit::<D>(0);
+                for d in 0..D {
+                    let below = min[d] - x[d];
+                    let above = x[d] - max[d];
+                    outside[d] = below.max(above).max(0.0);
+                    let (depth, sign) = if below > above {
+                        (below, -1.0)
+                    } else {
+                        (above, 1.0)
+                    };
+                    if depth > best {
+                        best = depth;
+                        best_normal = unit::<D>(d) * sign;
+                    }
+                }
+                if best > 0.0 {
+                    let len = outside.norm();
+                    (len, outside / len)
+                } else {
+                    (best, best_normal)
+                }
+            }
+        }
+    }
+}
+
+fn unit<const D: usize>(axis: usize) -> Vector<D> {
+    let mut v = Vector::<D>::zeros();
+    v[axis] = 1.0;
+    v
+}
+
+/// A rigid obstacle moving at constant velocity.
+#[derive(Clone, Debug)]
+struct ObstacleRule<const D: usize> {
+    solid: Solid<D>,
+    contact: Contact,
+    velocity: Vector<D>,
+}
+
+/// Every boundary condition of a scene, ready to apply to grid nodes.
+#[derive(Clone, Debug, Default)]
+pub struct Boundaries<const D: usize> {
+    walls: Vec<WallRule>,
+    obstacles: Vec<ObstacleRule<D>>,
+}
+
+fn vec_of<const D: usize>(s: &[f64]) -> Vector<D> {
+    crate::math::vector_from_slice::<D>(s)
+}
+
+impl<const D: usize> Boundaries<D> {
+    /// Resolves validated scene walls and obstacles.
+    pub fn new(walls: &[Wall], obstacles: &[crate::scene::Obstacle]) -> Self {
+        let mut rules = Vec::new();
+        for wall in walls {
+            for side in &wall.sides {
+                let (axis, upper) = side.axis_and_upper();
+                rules.push(WallRule {
+                    axis,
+                    upper,
+                    thickness: wall.thickness as usize,
+                    contact: wall.condition,
+                });
+            }
+        }
+        let obstacles = obstacles
+            .iter()
+            .map(|o| {
+                let solid = match &o.shape {
+                    ObstacleShape::Plane { point, normal } => Solid::Plane {
+                        point: vec_of(point),
+                        normal: vec_of::<D>(normal).normalize(),
+                    },
+                    ObstacleShape::Box { min, max } => Solid::Box {
+                        min: vec_of(min),
+                        max: vec_of(max),
+                    },
+                    ObstacleShape::Sphere { center, radius } => Solid::Sphere {
+                        center: vec_of(center),
+                        radius: *radius,
+                    },
+                    ObstacleShape::Cylinder {
+                        center,
+                        axis,
+                        radius,
+                    } => Solid::Cylinder {
+                        center: vec_of(center),
+                        axis: vec_of::<D>(axis).normalize(),
+                        radius: *radius,
+                    },
+                };
+                ObstacleRule {
+                    solid,
+                    contact: o.condition,
+                    velocity: o.velocity.as_deref().map(vec_of).unwrap_or_else(Vector::<D>::zeros),
+                }
+            })
+            .collect();
+        Self {
+            walls: rules,
+            obstacles,
+        }
+    }
+
+    /// Whether there is nothing to apply.
+    pub fn is_empty(&self) -> bool {
+        self.walls.is_empty() && self.obstacles.is_empty()
+    }
+
+    /// Constrains the velocity `v` of node `ijk` at position `x` at time `t`.
+    #[inline]
+    pub fn apply(&self, ijk: [usize; 3], cells: &[usize; 3], x: &Vector<D>, t: f64, v: &mut Vector<D>) {
+        for wall in &self.walls {
+            let i = ijk[wall.axis];
+            let inside = if wall.upper {
+                i + wall.thickness > cells[wall.axis]
+            } else {
+                i < wall.thickness
+            };
+            if inside {
+                let mut n = Vector::<D>::zeros();
+                n[wall.axis] = if wall.upper { -1.0 } else { 1.0 };
+                apply_contact(v, &n, wall.contact);
+            }
+        }
+        for obstacle in &self.obstacles {
+            // The obstacle has moved by velocity·t: evaluate at the point relative to it.
+            let local = x - obstacle.velocity * t;
+            let (phi, n) = obstacle.solid.distance_and_normal(&local);
+            if phi <= 0.0 {
+                let mut rel = *v - obstacle.velocity;
+                apply_contact(&mut rel, &n, obstacle.contact);
+                *v = rel + obstacle.velocity;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn friction_reduces_tangential_speed_without_reversing() {
+        let n = Vector::<2>::new(0.0, 1.0);
+        let mut v = Vector::<2>::new(1.0, -0.5);
+        apply_contact(&mut v, &n, Contact::Friction { coefficient: 0.4 });
+        assert!((v - Vector::<2>::new(0.8, 0.0)).norm() < 1e-14);
+        let mut v = Vector::<2>::new(0.1, -0.5);
+        apply_contact(&mut v, &n, Contact::Friction { coefficient: 0.4 });
+        assert_eq!(v, Vector::<2>::zeros());
+        // Separating: untouched.
+        let mut v = Vector::<2>::new(0.1, 0.5);
+        apply_contact(&mut v, &n, Contact::Slip);
+        assert_eq!(v, Vector::<2>::new(0.1, 0.5));
+    }
+
+    #[test]
+    fn box_distance_inside_and_outside() {
+        let solid = Solid::<2>::Box {
+            min: Vector::<2>::new(0.0, 0.0),
+            max: Vector::<2>::new(1.0, 2.0),
+        };
+        let (phi, n) = solid.distance_and_normal(&Vector::<2>::new(0.9, 1.0));
+        assert!((phi + 0.1).abs() < 1e-12);
+        assert_eq!(n, Vector::<2>::new(1.0, 0.0));
+        let (phi, n) = solid.distance_and_normal(&Vector::<2>::new(0.5, 2.5));
+        assert!((phi - 0.5).abs() < 1e-12);
+        assert_eq!(n, Vector::<2>::new(0.0, 1.0));
+    }
+}

@@ -1,0 +1,20 @@
+//! Solver core of the `mpm` material point method simulator.
+//!
+//! The core knows no plugin: materials come in through [`plugin::Registry`]. Hot loops are
+//! generic over the dimension and the kernel; particle data is structure-of-arrays. See
+//! `docs/ARCHITECTURE.md` for the step pipeline.
+
+pub mod boundary;
+pub mod grid;
+pub mod kernels;
+pub mod material;
+pub mod math;
+pub mod output;
+pub mod particles;
+pub mod plugin;
+pub mod reference;
+pub mod scene;
+pub mod solver;
+
+/// Version of this crate, stored with every result.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -1,0 +1,130 @@
+//! The constitutive-model interface: a material updates the stress of a whole batch of its
+//! particles per call, so dynamic dispatch happens once per batch, never per particle.
+
+use crate::math::Matrix;
+
+/// Most per-particle state fields one material may declare.
+pub const MAX_STATE_FIELDS: usize = 8;
+
+/// A per-particle field a material keeps between steps (plastic strain, damage, ...).
+/// The core allocates it only for the particles of that material.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FieldSpec {
+    /// Name, also used as the output field name.
+    pub name: &'static str,
+    /// Numbers per particle.
+    pub components: usize,
+    /// Value every particle starts with.
+    pub initial: FieldInit,
+}
+
+/// Initial value of a state field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldInit {
+    /// All zeros.
+    Zero,
+    /// The identity matrix (for a field of `D*D` components).
+    Identity,
+}
+
+/// The state fields of one batch, in the order the material declared them; each slice holds
+/// `components` numbers per particle.
+pub struct StateSlices<'a> {
+    /// One slice per declared field; unused entries are empty.
+    pub fields: [&'a mut [f64]; MAX_STATE_FIELDS],
+}
+
+/// Everything a material sees of one batch of its particles.
+pub struct StressBatch<'a, const D: usize> {
+    /// Time step of the update, seconds.
+    pub dt: f64,
+    /// Deformation gradient after this step's kinematic update.
+    pub deformation_gradient: &'a [Matrix<D>],
+    /// Velocity gradient of this step; empty unless the material asked for it
+    /// ([`ConstitutiveLaw::needs_velocity_gradient`]).
+    pub velocity_gradient: &'a [Matrix<D>],
+    /// Reference (initial) volume of each particle, m³ (m² in 2D: per unit thickness).
+    pub volume0: &'a [f64],
+    /// Cauchy stress, written by the material.
+    pub stress: &'a mut [Matrix<D>],
+    /// The material's own per-particle state.
+    pub state: StateSlices<'a>,
+}
+
+/// What a batch update reports back for diagnostics and the time step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BatchStats {
+    /// Stored (strain) energy of the batch, J (J/m in 2D).
+    pub strain_energy: f64,
+    /// Largest wave speed in the batch, m/s; it bounds the stable time step.
+    pub max_wave_speed: f64,
+}
+
+impl BatchStats {
+    /// Combines the statistics of two batches.
+    pub fn merge(self, other: Self) -> Self {
+        Self {
+            strain_energy: self.strain_energy + other.strain_energy,
+            max_wave_speed: self.max_wave_speed.max(other.max_wave_speed),
+        }
+    }
+}
+
+/// What a plugin author implements for a material: one generic stress update that serves
+/// both 2D (plane strain) and 3D.
+pub trait ConstitutiveLaw: Send + Sync + 'static {
+    /// Mass density in the reference configuration, kg/m³.
+    fn density(&self) -> f64;
+    /// Per-particle state this law keeps (none by default).
+    fn state_fields(&self) -> &[FieldSpec] {
+        &[]
+    }
+    /// Whether the law needs the velocity gradient (rate-dependent laws do).
+    fn needs_velocity_gradient(&self) -> bool {
+        false
+    }
+    /// Computes the Cauchy stress of every particle in the batch and reports the batch's
+    /// strain energy and largest wave speed.
+    fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats;
+}
+
+/// Object-safe form of [`ConstitutiveLaw`]; implemented for every law, used by the solver.
+pub trait Material: Send + Sync {
+    /// See [`ConstitutiveLaw::density`].
+    fn density(&self) -> f64;
+    /// See [`ConstitutiveLaw::state_fields`].
+    fn state_fields(&self) -> &[FieldSpec];
+    /// See [`ConstitutiveLaw::needs_velocity_gradient`].
+    fn needs_velocity_gradient(&self) -> bool;
+    /// 2D (plane strain) batch update.
+    fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats;
+    /// 3D batch update.
+    fn update_stress_3d(&self, batch: StressBatch<'_, 3>) -> BatchStats;
+}
+
+impl<T: ConstitutiveLaw> Material for T {
+    fn density(&self) -> f64 {
+        ConstitutiveLaw::density(self)
+    }
+    fn state_fields(&self) -> &[FieldSpec] {
+        ConstitutiveLaw::state_fields(self)
+    }
+    fn needs_velocity_gradient(&self) -> bool {
+        ConstitutiveLaw::needs_velocity_gradient(self)
+    }
+    fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats {
+        self.update_stress::<2>(batch)
+    }
+    fn update_stress_3d(&self, batch: StressBatch<'_, 3>) -> BatchStats {
+        self.update_stress::<3>(batch)
+    }
+}
+
+/// Lamé parameters (λ, μ) from Young's modulus and Poisson's ratio.
+pub fn lame_parameters(youngs_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
+    let e = youngs_modulus;
+    let nu = poisson_ratio;
+    let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    let mu = e / (2.0 * (1.0 + nu));
+    (lambda, mu)
+}

@@ -1,0 +1,157 @@
+//! Small fixed-size linear algebra shared by the solver and material plugins.
+//!
+//! Everything is generic over the dimension `D` (2 or 3) so hot loops monomorphise; the
+//! branches on `D` below are resolved at compile time.
+
+use nalgebra::{SMatrix, SVector};
+
+/// A point or vector in `D` dimensions.
+pub type Vector<const D: usize> = SVector<f64, D>;
+/// A `D`×`D` matrix (deformation gradient, stress, velocity gradient ...).
+pub type Matrix<const D: usize> = SMatrix<f64, D, D>;
+
+/// Determinant of a 2×2 or 3×3 matrix.
+#[inline(always)]
+pub fn determinant<const D: usize>(m: &Matrix<D>) -> f64 {
+    match D {
+        2 => m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)],
+        3 => {
+            m[(0, 0)] * (m[(1, 1)] * m[(2, 2)] - m[(1, 2)] * m[(2, 1)])
+                - m[(0, 1)] * (m[(1, 0)] * m[(2, 2)] - m[(1, 2)] * m[(2, 0)])
+                + m[(0, 2)] * (m[(1, 0)] * m[(2, 1)] - m[(1, 1)] * m[(2, 0)])
+        }
+        _ => unreachable!("only 2 and 3 dimensions are supported"),
+    }
+}
+
+/// Cofactor matrix (so that `inverse = cofactor^T / det`, and `cofactor = det · F^{-T}`).
+#[inline(always)]
+pub fn cofactor<const D: usize>(m: &Matrix<D>) -> Matrix<D> {
+    let mut c = Matrix::<D>::zeros();
+    match D {
+        2 => {
+            c[(0, 0)] = m[(1, 1)];
+            c[(0, 1)] = -m[(1, 0)];
+            c[(1, 0)] = -m[(0, 1)];
+            c[(1, 1)] = m[(0, 0)];
+        }
+        3 => {
+            c[(0, 0)] = m[(1, 1)] * m[(2, 2)] - m[(1, 2)] * m[(2, 1)];
+            c[(0, 1)] = m[(1, 2)] * m[(2, 0)] - m[(1, 0)] * m[(2, 2)];
+            c[(0, 2)] = m[(1, 0)] * m[(2, 1)] - m[(1, 1)] * m[(2, 0)];
+            c[(1, 0)] = m[(0, 2)] * m[(2, 1)] - m[(0, 1)] * m[(2, 2)];
+            c[(1, 1)] = m[(0, 0)] * m[(2, 2)] - m[(0, 2)] * m[(2, 0)];
+            c[(1, 2)] = m[(0, 1)] * m[(2, 0)] - m[(0, 0)] * m[(2, 1)];
+            c[(2, 0)] = m[(0, 1)] * m[(1, 2)] - m[(0, 2)] * m[(1, 1)];
+            c[(2, 1)] = m[(0, 2)] * m[(1, 0)] - m[(0, 0)] * m[(1, 2)];
+            c[(2, 2)] = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
+        }
+        _ => unreachable!("only 2 and 3 dimensions are supported"),
+    }
+    c
+}
+
+/// Inverse of a 2×2 or 3×3 matrix, `None` when it is singular.
+#[inline(always)]
+pub fn inverse<const D: usize>(m: &Matrix<D>) -> Option<Matrix<D>> {
+    let det = determinant(m);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    Some(cofactor(m).transpose() / det)
+}
+
+/// Rotation `R` of the polar decomposition `F = R·S` (S symmetric positive definite).
+///
+/// 2D uses the closed form; 3D uses Higham's scaled Newton iteration, which converges
+/// quadratically and needs only 3×3 inverses (much cheaper than an SVD). Requires det F > 0,
+/// which the solver guarantees (it stops a run at det F <= 0).
+#[inline]
+pub fn polar_rotation<const D: usize>(f: &Matrix<D>) -> Matrix<D> {
+    match D {
+        2 => {
+            let a = f[(0, 0)] + f[(1, 1)];
+            let b = f[(1, 0)] - f[(0, 1)];
+            let norm = (a * a + b * b).sqrt();
+            let mut r = Matrix::<D>::identity();
+            if norm > 0.0 {
+                let (c, s) = (a / norm, b / norm);
+                r[(0, 0)] = c;
+                r[(0, 1)] = -s;
+                r[(1, 0)] = s;
+                r[(1, 1)] = c;
+            }
+            r
+        }
+        3 => {
+            let mut x = *f;
+            for _ in 0..32 {
+                let det = determinant(&x);
+                if det.abs() < 1e-300 || !det.is_finite() {
+                    break;
+                }
+                // X^{-T} = cofactor / det
+                let inv_t = cofactor(&x) / det;
+                let gamma = (inv_t.norm_squared() / x.norm_squared()).sqrt().sqrt();
+                let next = (x * gamma + inv_t / gamma) * 0.5;
+                let change = (next - x).norm_squared();
+                x = next;
+                if change < 1e-26 {
+                    break;
+                }
+            }
+            x
+        }
+        _ => unreachable!("only 2 and 3 dimensions are supported"),
+    }
+}
+
+/// Trace of a square matrix.
+#[inline(always)]
+pub fn trace<const D: usize>(m: &Matrix<D>) -> f64 {
+    let mut t = 0.0;
+    for i in 0..D {
+        t += m[(i, i)];
+    }
+    t
+}
+
+/// Builds a `Vector<D>` from a slice of at least `D` numbers.
+#[inline]
+pub fn vector_from_slice<const D: usize>(s: &[f64]) -> Vector<D> {
+    Vector::<D>::from_fn(|i, _| s[i])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Rotation3, Vector3};
+
+    #[test]
+    fn polar_3d_recovers_rotation() {
+        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), 0.7)
+            * Rotation3::from_axis_angle(&Vector3::x_axis(), -1.2);
+        let s = Matrix3::new(1.3, 0.2, 0.1, 0.2, 0.8, -0.05, 0.1, -0.05, 1.1);
+        let f = r.matrix() * s;
+        let got = polar_rotation::<3>(&f);
+        assert!((got - r.matrix()).norm() < 1e-10, "{got} vs {}", r.matrix());
+    }
+
+    #[test]
+    fn polar_2d_recovers_rotation() {
+        let (c, s) = (0.3f64.cos(), 0.3f64.sin());
+        let r = Matrix::<2>::new(c, -s, s, c);
+        let st = Matrix::<2>::new(1.5, 0.3, 0.3, 0.7);
+        let got = polar_rotation::<2>(&(r * st));
+        assert!((got - r).norm() < 1e-12);
+    }
+
+    #[test]
+    fn inverse_and_determinant_agree_with_nalgebra() {
+        let m = Matrix3::new(2.0, 0.5, 0.1, -0.3, 1.5, 0.2, 0.4, 0.0, 0.9);
+        assert!((determinant::<3>(&m) - m.determinant()).abs() < 1e-12);
+        let inv = inverse::<3>(&m).unwrap();
+        assert!((inv * m - Matrix3::identity()).norm() < 1e-12);
+        assert!(inverse::<3>(&Matrix3::zeros()).is_none());
+    }
+}

@@ -1,0 +1,163 @@
+//! What a run hands to a result writer: particle fields per frame, scalar diagnostics per
+//! frame and the final metrics. The core knows no file format; `mpm-io` writes Zarr.
+
+use serde::Serialize;
+
+/// A particle field written per frame; `shape` is the per-particle shape (`[]`, `[D]`,
+/// `[D, D]`, ...).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct FieldInfo {
+    /// Field name (`x`, `stress`, ...).
+    pub name: String,
+    /// Shape of one particle's value.
+    pub shape: Vec<usize>,
+}
+
+impl FieldInfo {
+    /// Numbers per particle.
+    pub fn components(&self) -> usize {
+        self.shape.iter().product()
+    }
+}
+
+/// Scalar diagnostics stored once per frame, in this order.
+pub const FRAME_DIAGNOSTICS: &[&str] = &[
+    "step",
+    "dt",
+    "kinetic_energy",
+    "strain_energy",
+    "gravity_energy",
+    "total_energy",
+    "max_speed",
+    "min_det_f",
+];
+
+/// Static facts about a run, given to the writer before the first frame.
+pub struct RunInfo<'a> {
+    /// Scene name.
+    pub name: &'a str,
+    /// 2 or 3.
+    pub dimension: usize,
+    /// Particle count (fixed for the run).
+    pub particles: usize,
+    /// The fields each frame carries, in order.
+    pub fields: &'a [FieldInfo],
+    /// The scene with defaults filled in.
+    pub scene: &'a serde_json::Value,
+}
+
+/// One output frame. `values[i]` holds field `i` for every particle in output order,
+/// flattened (particle-major).
+pub struct Frame<'a> {
+    /// Frame number, from 0.
+    pub index: usize,
+    /// Simulated time, seconds.
+    pub time: f64,
+    /// Field values, parallel to [`RunInfo::fields`].
+    pub values: &'a [Vec<f64>],
+    /// Values of [`FRAME_DIAGNOSTICS`], in order.
+    pub diagnostics: &'a [f64],
+}
+
+/// A failure of the result writer.
+#[derive(Debug, thiserror::Error)]
+#[error("writing results: {0}")]
+pub struct OutputError(pub String);
+
+/// Receives a run's results.
+pub trait OutputSink {
+    /// Called once before the first frame.
+    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError>;
+    /// Called for every output frame, in order.
+    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError>;
+    /// Called once at the end, also when the run stopped early.
+    fn finish(&mut self, metrics: &Metrics) -> Result<(), OutputError>;
+}
+
+/// A sink that stores nothing (for tests and benchmarks).
+#[derive(Default)]
+pub struct NullSink;
+
+impl OutputSink for NullSink {
+    fn begin(&mut self, _: &RunInfo<'_>) -> Result<(), OutputError> {
+        Ok(())
+    }
+    fn write_frame(&mut self, _: &Frame<'_>) -> Result<(), OutputError> {
+        Ok(())
+    }
+    fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
+        Ok(())
+    }
+}
+
+/// How a run ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Reached the end time.
+    Finished,
+    /// Stopped by a check (NaN, det F <= 0, speed, energy, time step); see the diagnostic.
+    Stopped,
+    /// Cancelled by the caller.
+    Cancelled,
+}
+
+/// Where and why a run stopped.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Diagnostic {
+    /// Step at which the problem was seen.
+    pub step: u64,
+    /// Simulated time then.
+    pub time: f64,
+    /// Particle (in output order), when one particle is at fault.
+    pub particle: Option<usize>,
+    /// Field or quantity (`x`, `v`, `stress`, `det_f`, `energy`, `dt`, ...).
+    pub field: String,
+    /// The offending value.
+    pub value: f64,
+    /// A sentence for people.
+    pub message: String,
+}
+
+/// Figures of a finished (or stopped) run; stored as the result store's `metrics` attribute.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Metrics {
+    /// `finished`, `stopped` or `cancelled`.
+    pub outcome: Option<Outcome>,
+    /// Wall-clock seconds of the step loop and output.
+    pub wall_seconds: f64,
+    /// Time steps taken.
+    pub steps: u64,
+    /// Simulated time reached, seconds.
+    pub simulated_time: f64,
+    /// Particle count.
+    pub particles: usize,
+    /// Particle steps per wall second.
+    pub particle_steps_per_second: f64,
+    /// Particle storage actually allocated, bytes per particle.
+    pub bytes_per_particle: f64,
+    /// Grid storage, bytes.
+    pub grid_bytes: usize,
+    /// Final total energy change relative to the largest mechanical energy seen.
+    pub energy_drift: f64,
+    /// Largest |energy drift| over the run.
+    pub max_energy_drift: f64,
+    /// Error against the scene's reference, when it has one.
+    pub error: Option<f64>,
+    /// What `error` measures.
+    pub error_kind: Option<String>,
+    /// Reference and measured values where the error compares two numbers.
+    pub reference_value: Option<f64>,
+    /// See `reference_value`.
+    pub measured_value: Option<f64>,
+    /// Smallest det F seen.
+    pub min_det_f: f64,
+    /// Largest particle speed seen, m/s.
+    pub max_speed: f64,
+    /// Output frames written.
+    pub frames: usize,
+    /// Worker threads used.
+    pub threads: usize,
+    /// Why the run stopped, when it did.
+    pub diagnostic: Option<Diagnostic>,
+}

@@ -1,0 +1,94 @@
+//! Particle storage: structure of arrays, one `Vec` per field, allocated only when the scene
+//! needs the field (no affine matrices without APIC, no velocity gradient unless a material
+//! asks, no initial positions unless a reference needs them).
+
+use crate::material::Material;
+use crate::math::{Matrix, Vector};
+use std::ops::Range;
+use std::sync::Arc;
+
+/// The particles of one material, stored contiguously so a material updates them as a batch.
+pub struct MaterialGroup {
+    /// The material's name in the scene.
+    pub name: String,
+    /// The constitutive law.
+    pub material: Arc<dyn Material>,
+    /// Particle indices of this group.
+    pub range: Range<usize>,
+    /// The law's declared state fields for this group's particles, one `Vec` per field
+    /// (`components` numbers per particle).
+    pub state: Vec<Vec<f64>>,
+}
+
+/// All particles, as parallel arrays indexed by particle.
+pub struct Particles<const D: usize> {
+    /// Current position.
+    pub position: Vec<Vector<D>>,
+    /// Velocity.
+    pub velocity: Vec<Vector<D>>,
+    /// Mass (constant).
+    pub mass: Vec<f64>,
+    /// Reference volume.
+    pub volume0: Vec<f64>,
+    /// Deformation gradient F.
+    pub deformation_gradient: Vec<Matrix<D>>,
+    /// Cauchy stress.
+    pub stress: Vec<Matrix<D>>,
+    /// APIC affine velocity matrix C (empty unless APIC).
+    pub affine: Vec<Matrix<D>>,
+    /// Velocity gradient of the last step (empty unless a material needs it).
+    pub velocity_gradient: Vec<Matrix<D>>,
+    /// Half width of the undeformed particle in cells (empty unless GIMP).
+    pub half_size: Vec<f64>,
+    /// Position at time 0 (empty unless a reference needs it).
+    pub initial_position: Vec<Vector<D>>,
+    /// Index of the particle in the output order (particles are reordered for locality;
+    /// output is always written in the original order).
+    pub id: Vec<u32>,
+    /// Contiguous ranges of particles sharing a material.
+    pub groups: Vec<MaterialGroup>,
+}
+
+impl<const D: usize> Particles<D> {
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.position.len()
+    }
+
+    /// Whether there are no particles.
+    pub fn is_empty(&self) -> bool {
+        self.position.is_empty()
+    }
+
+    /// Bytes of particle storage actually allocated, material state included.
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        let v = size_of::<Vector<D>>();
+        let m = size_of::<Matrix<D>>();
+        let state: usize = self
+            .groups
+            .iter()
+            .flat_map(|g| g.state.iter())
+            .map(|s| s.capacity() * 8)
+            .sum();
+        (self.position.capacity() + self.velocity.capacity() + self.initial_position.capacity())
+            * v
+            + (self.mass.capacity() + self.volume0.capacity() + self.half_size.capacity()) * 8
+            + (self.deformation_gradient.capacity()
+                + self.stress.capacity()
+                + self.affine.capacity()
+                + self.velocity_gradient.capacity())
+                * m
+            + self.id.capacity() * 4
+            + state
+    }
+
+    /// Bytes per particle (see [`Particles::bytes`]).
+    pub fn bytes_per_particle(&self) -> f64 {
+        if self.is_empty() {
+            0.0
+        } else {
+            self.bytes() as f64 / self.len() as f64
+        }
+    }
+}

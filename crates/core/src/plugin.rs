@@ -1,0 +1,218 @@
+//! Plugins: crates that add materials (and later other physics) to the solver.
+//!
+//! A plugin is a value implementing [`Plugin`]; the `mpm` binary registers each one in a
+//! [`Registry`] with one line. The core knows no plugin by name.
+
+use crate::material::Material;
+use crate::scene::Issue;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// A crate's entry point: its name and what it brings.
+pub trait Plugin: Send + Sync {
+    /// Short unique name (`elastic`).
+    fn name(&self) -> &'static str;
+    /// One line for `mpm plugins`.
+    fn description(&self) -> &'static str;
+    /// The material types this plugin provides.
+    fn materials(&self) -> Vec<Box<dyn MaterialFactory>>;
+}
+
+/// Builds one material type from its scene section (`materials.<name>`).
+pub trait MaterialFactory: Send + Sync {
+    /// Value of the section's `type` key (`neo_hookean`).
+    fn type_name(&self) -> &'static str;
+    /// JSON Schema of the whole section, `type` key included.
+    fn schema(&self) -> serde_json::Value;
+    /// Reads and checks the section; issues carry full JSON paths below `path`.
+    fn build(&self, section: &serde_json::Value, path: &str)
+    -> Result<Arc<dyn Material>, Vec<Issue>>;
+}
+
+/// Registration failures.
+#[derive(Debug, thiserror::Error)]
+pub enum RegistryError {
+    /// Two plugins claim the same material type.
+    #[error("material type `{0}` is provided by two plugins (`{1}` and `{2}`)")]
+    DuplicateMaterial(String, String, String),
+    /// Two plugins with one name.
+    #[error("plugin `{0}` is registered twice")]
+    DuplicatePlugin(String),
+}
+
+/// Reads particles (positions, volumes) from a result store, given the path, the dimension
+/// and the default particle spacing. The core cannot read Zarr itself (io knows no physics
+/// and core knows no io), so the binary installs one.
+pub type ParticleStoreReader =
+    Box<dyn Fn(&Path, usize, f64) -> Result<(Vec<f64>, Vec<f64>), String> + Send + Sync>;
+
+/// All registered plugins and the material types they provide.
+#[derive(Default)]
+pub struct Registry {
+    plugins: Vec<Box<dyn Plugin>>,
+    materials: BTreeMap<&'static str, (usize, Box<dyn MaterialFactory>)>,
+    store_reader: Option<ParticleStoreReader>,
+}
+
+impl Registry {
+    /// An empty registry.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a plugin and its material types.
+    pub fn register(&mut self, plugin: Box<dyn Plugin>) -> Result<(), RegistryError> {
+        if self.plugins.iter().any(|p| p.name() == plugin.name()) {
+            return Err(RegistryError::DuplicatePlugin(plugin.name().into()));
+        }
+        let index = self.plugins.len();
+        for factory in plugin.materials() {
+            let name = factory.type_name();
+            if let Some((other, _)) = self.materials.get(name) {
+                return Err(RegistryError::DuplicateMaterial(
+                    name.into(),
+                    self.plugins[*other].name().into(),
+                    plugin.name().into(),
+                ));
+            }
+            self.materials.insert(name, (index, factory));
+        }
+        self.plugins.push(plugin);
+        Ok(())
+    }
+
+    /// The factory for a material type.
+    pub fn material(&self, type_name: &str) -> Option<&dyn MaterialFactory> {
+        self.materials.get(type_name).map(|(_, f)| f.as_ref())
+    }
+
+    /// Registered material type names, sorted.
+    pub fn material_types(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.materials.keys().copied()
+    }
+
+    /// Registered plugins in registration order.
+    pub fn plugins(&self) -> impl Iterator<Item = &dyn Plugin> {
+        self.plugins.iter().map(|p| p.as_ref())
+    }
+
+    /// Installs the reader used for bodies made from a result store.
+    pub fn set_particle_store_reader(&mut self, reader: ParticleStoreReader) {
+        self.store_reader = Some(reader);
+    }
+
+    /// Reads a body's particles from a result store (see [`ParticleStoreReader`]).
+    pub fn read_particle_store(
+        &self,
+        path: &Path,
+        dim: usize,
+        spacing: f64,
+    ) -> Result<(Vec<f64>, Vec<f64>), String> {
+        match &self.store_reader {
+            Some(read) => read(path, dim, spacing),
+            None => Err("this program cannot read particle stores (no reader installed)".into()),
+        }
+    }
+
+    /// Material types of one plugin with their schemas.
+    pub fn materials_of(&self, plugin: &str) -> Vec<(&'static str, serde_json::Value)> {
+        let Some(index) = self.plugins.iter().position(|p| p.name() == plugin) else {
+            return Vec::new();
+        };
+        self.materials
+            .iter()
+            .filter(|(_, (i, _))| *i == index)
+            .map(|(name, (_, f))| (*name, f.schema()))
+            .collect()
+    }
+}
+
+/// Checks a typed parameter section and builds the material (see [`TypedMaterialFactory`]).
+pub type BuildFn<P> = fn(P, &str) -> Result<Arc<dyn Material>, Vec<Issue>>;
+
+/// A [`MaterialFactory`] for a parameter struct `P` (serde + schemars): it strips the `type`
+/// key, deserialises `P` with JSON-path errors, derives the schema, and calls `build`.
+pub struct TypedMaterialFactory<P> {
+    type_name: &'static str,
+    build: BuildFn<P>,
+}
+
+impl<P> TypedMaterialFactory<P> {
+    /// A factory for material type `type_name`.
+    pub fn new(type_name: &'static str, build: BuildFn<P>) -> Self {
+        Self { type_name, build }
+    }
+}
+
+impl<P> MaterialFactory for TypedMaterialFactory<P>
+where
+    P: serde::de::DeserializeOwned + schemars::JsonSchema + Send + Sync,
+{
+    fn type_name(&self) -> &'static str {
+        self.type_name
+    }
+
+    fn schema(&self) -> serde_json::Value {
+        let mut schema = schemars::SchemaGenerator::default()
+            .into_root_schema_for::<P>()
+            .to_value();
+        if let Some(obj) = schema.as_object_mut() {
+            obj.remove("$schema");
+            if let Some(props) = obj.get_mut("properties").and_then(|p| p.as_object_mut()) {
+                props.insert(
+                    "type".into(),
+                    serde_json::json!({ "const": self.type_name, "description": "Material type." }),
+                );
+            }
+            if let Some(req) = obj.get_mut("required").and_then(|r| r.as_array_mut()) {
+                req.insert(0, serde_json::json!("type"));
+            } else {
+                obj.insert("required".into(), serde_json::json!(["type"]));
+            }
+        }
+        schema
+    }
+
+    fn build(
+        &self,
+        section: &serde_json::Value,
+        path: &str,
+    ) -> Result<Arc<dyn Material>, Vec<Issue>> {
+        let mut params = section.clone();
+        if let Some(obj) = params.as_object_mut() {
+            obj.remove("type");
+        }
+        let typed: P = crate::scene::deserialize_at(&params, path).map_err(|e| vec![e])?;
+        (self.build)(typed, path)
+    }
+}
+
+/// Checks the usual elastic constants and returns every problem with its JSON path.
+pub fn check_elastic_constants(
+    path: &str,
+    density: f64,
+    youngs_modulus: f64,
+    poisson_ratio: f64,
+) -> Vec<Issue> {
+    let mut issues = Vec::new();
+    if !(density.is_finite() && density > 0.0) {
+        issues.push(Issue::new(
+            format!("{path}.density"),
+            format!("must be a finite number > 0 (got {density})"),
+        ));
+    }
+    if !(youngs_modulus.is_finite() && youngs_modulus > 0.0) {
+        issues.push(Issue::new(
+            format!("{path}.youngs_modulus"),
+            format!("must be a finite number > 0 (got {youngs_modulus})"),
+        ));
+    }
+    if !(poisson_ratio > -1.0 && poisson_ratio < 0.5) {
+        issues.push(Issue::new(
+            format!("{path}.poisson_ratio"),
+            format!("must lie in (-1, 0.5) (got {poisson_ratio})"),
+        ));
+    }
+    issues
+}

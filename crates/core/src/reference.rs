@@ -1,0 +1,186 @@
+//! Reference solutions a run measures its error against (closed forms and a shooting solve).
+
+use crate::math::Vector;
+use crate::particles::Particles;
+use crate::scene::Reference;
+use std::f64::consts::PI;
+
+/// Accumulates the error of a run against a [`Reference`].
+pub struct ReferenceTracker {
+    reference: Reference,
+    numerator: f64,
+    denominator: f64,
+    measured: Option<f64>,
+    expected: Option<f64>,
+}
+
+impl ReferenceTracker {
+    /// A tracker with nothing accumulated.
+    pub fn new(reference: Reference) -> Self {
+        let expected = match &reference {
+            Reference::CantileverElastica {
+                length,
+                thickness,
+                youngs_modulus,
+                poisson_ratio,
+                density,
+                gravity,
+                ..
+            } => {
+                let e_plane = youngs_modulus / (1.0 - poisson_ratio * poisson_ratio);
+                let inertia = thickness.powi(3) / 12.0;
+                let load = density * gravity * thickness;
+                let alpha = load * length.powi(3) / (e_plane * inertia);
+                Some(heavy_elastica_tip_deflection(alpha) * length)
+            }
+            _ => None,
+        };
+        Self {
+            reference,
+            numerator: 0.0,
+            denominator: 0.0,
+            measured: None,
+            expected,
+        }
+    }
+
+    /// What the error measures, for the metrics.
+    pub fn kind(&self) -> &'static str {
+        match self.reference {
+            Reference::VibratingBar { .. } => {
+                "relative L2 error of particle velocity over all output frames (vibrating bar, first mode)"
+            }
+            Reference::CantileverElastica { .. } => {
+                "relative error of the tip deflection at the end time against the heavy elastica"
+            }
+        }
+    }
+
+    /// Whether the tracker needs each particle's initial position.
+    pub fn needs_initial_positions(&self) -> bool {
+        true
+    }
+
+    /// Takes one output frame into account.
+    pub fn observe<const D: usize>(&mut self, particles: &Particles<D>, time: f64, last: bool) {
+        match self.reference {
+            Reference::VibratingBar {
+                axis,
+                fixed_end,
+                length,
+                amplitude,
+                youngs_modulus,
+                density,
+            } => {
+                let omega = PI * (youngs_modulus / density).sqrt() / (2.0 * length);
+                let phase = (omega * time).cos();
+                for p in 0..particles.len() {
+                    let s = particles.initial_position[p][axis] - fixed_end;
+                    let mut v_ref = Vector::<D>::zeros();
+                    v_ref[axis] = amplitude * (PI * s / (2.0 * length)).sin() * phase;
+                    let m = particles.mass[p];
+                    self.numerator += m * (particles.velocity[p] - v_ref).norm_squared();
+                    self.denominator += m * v_ref.norm_squared();
+                }
+            }
+            Reference::CantileverElastica {
+                axis, clamped_end, ..
+            } => {
+                if !last {
+                    return;
+                }
+                // Mean deflection of the particles in the free end's last layer.
+                let tip = (0..particles.len())
+                    .map(|p| particles.initial_position[p][axis])
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let across = if axis == 0 { 1 } else { 0 };
+                let (mut sum, mut count) = (0.0, 0usize);
+                for p in 0..particles.len() {
+                    if tip - particles.initial_position[p][axis] < 1e-9 * (tip - clamped_end).abs() {
+                        sum += particles.initial_position[p][across] - particles.position[p][across];
+                        count += 1;
+                    }
+                }
+                self.measured = Some(sum / count.max(1) as f64);
+            }
+        }
+    }
+
+    /// The error so far (`None` before anything was observed).
+    pub fn error(&self) -> Option<f64> {
+        match self.reference {
+            Reference::VibratingBar { .. } => {
+                (self.denominator > 0.0).then(|| (self.numerator / self.denominator).sqrt())
+            }
+            Reference::CantileverElastica { .. } => {
+                let (m, e) = (self.measured?, self.expected?);
+                Some((m - e).abs() / e.abs())
+            }
+        }
+    }
+
+    /// Reference value, where the error compares two numbers.
+    pub fn expected(&self) -> Option<f64> {
+        self.expected
+    }
+
+    /// Measured value, where the error compares two numbers.
+    pub fn measured(&self) -> Option<f64> {
+        self.measured
+    }
+}
+
+/// Tip deflection over length of a clamped heavy elastica (inextensible beam under its own
+/// uniform weight), with `alpha = w L³ / (E I)`.
+///
+/// Solves θ'' = −α (1 − s) cos θ on s ∈ [0, 1] with θ(0) = 0, θ'(1) = 0 by shooting on θ'(0)
+/// (bisection; the end moment grows monotonically with it) and RK4, then integrates sin θ.
+pub fn heavy_elastica_tip_deflection(alpha: f64) -> f64 {
+    const STEPS: usize = 4000;
+    let integrate = |k: f64| -> (f64, f64) {
+        let h = 1.0 / STEPS as f64;
+        let (mut th, mut om, mut defl) = (0.0f64, k, 0.0f64);
+        let rhs = |s: f64, th: f64, om: f64| (om, -alpha * (1.0 - s) * th.cos(), th.sin());
+        for i in 0..STEPS {
+            let s = i as f64 * h;
+            let k1 = rhs(s, th, om);
+            let k2 = rhs(s + h / 2.0, th + h / 2.0 * k1.0, om + h / 2.0 * k1.1);
+            let k3 = rhs(s + h / 2.0, th + h / 2.0 * k2.0, om + h / 2.0 * k2.1);
+            let k4 = rhs(s + h, th + h * k3.0, om + h * k3.1);
+            th += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+            om += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            defl += h / 6.0 * (k1.2 + 2.0 * k2.2 + 2.0 * k3.2 + k4.2);
+        }
+        (om, defl)
+    };
+    let (mut lo, mut hi) = (0.0, alpha.max(1e-300));
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if integrate(mid).0 < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    integrate(0.5 * (lo + hi)).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn elastica_matches_linear_beam_theory_for_small_loads() {
+        // Small deflection: δ/L = α/8.
+        let alpha = 1e-3;
+        let d = heavy_elastica_tip_deflection(alpha);
+        assert!((d - alpha / 8.0).abs() / (alpha / 8.0) < 1e-4, "{d}");
+    }
+
+    #[test]
+    fn elastica_is_below_linear_theory_for_large_loads() {
+        // Large loads: the beam hangs, δ/L < 1 and below α/8.
+        let d = heavy_elastica_tip_deflection(10.0);
+        assert!(d < 10.0 / 8.0 && d > 0.5 && d < 1.0, "{d}");
+    }
+}

@@ -1,0 +1,100 @@
+//! Scene files: the JSON description of one run, its parsing and its validation.
+//!
+//! Parsing happens in three stages so every problem is reported with the JSON path where it
+//! lies: JSON syntax (line and column), structure (unknown keys, wrong types; via
+//! `serde_path_to_error`), then physics and geometry checks in [`validate`].
+
+mod types;
+mod validate;
+
+pub use types::*;
+pub use validate::{
+    BodyParticles, CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value, read_csv_particles,
+};
+
+use std::fmt;
+
+/// One problem in a scene file, at a JSON path such as `materials.steel.poisson_ratio`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Issue {
+    /// Dotted JSON path (`bodies[0].shape.box.min`); `$` for the whole document.
+    pub path: String,
+    /// What is wrong, in words a user can act on.
+    pub message: String,
+}
+
+impl Issue {
+    /// An issue at `path`.
+    pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for Issue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path, self.message)
+    }
+}
+
+/// A scene that cannot be run, with every problem found.
+#[derive(Clone, Debug, thiserror::Error)]
+pub struct SceneError {
+    /// The problems, in document order where possible.
+    pub issues: Vec<Issue>,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid scene ({} problem", self.issues.len())?;
+        if self.issues.len() != 1 {
+            write!(f, "s")?;
+        }
+        write!(f, "):")?;
+        for issue in &self.issues {
+            write!(f, "\n  {issue}")?;
+        }
+        Ok(())
+    }
+}
+
+impl SceneError {
+    /// A scene error with a single issue.
+    pub fn single(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            issues: vec![Issue::new(path, message)],
+        }
+    }
+}
+
+/// Joins a parent JSON path and a child path from `serde_path_to_error` (`.` means the root).
+pub fn join_path(parent: &str, child: &str) -> String {
+    let child = child.trim_start_matches('.');
+    if child.is_empty() || child == "." {
+        return parent.to_string();
+    }
+    if parent.is_empty() || parent == "$" {
+        return child.to_string();
+    }
+    if child.starts_with('[') {
+        format!("{parent}{child}")
+    } else {
+        format!("{parent}.{child}")
+    }
+}
+
+/// Deserialises `value` into `T`, reporting a failure at its JSON path below `parent`.
+///
+/// Plugins use this for their own scene sections so their errors name full paths too.
+pub fn deserialize_at<T: serde::de::DeserializeOwned>(
+    value: &serde_json::Value,
+    parent: &str,
+) -> Result<T, Issue> {
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let path = join_path(parent, &e.path().to_string());
+        let message = e.into_inner().to_string();
+        Issue::new(path, message)
+    })
+}

@@ -1,0 +1,211 @@
+//! Per-step binning of particles into x-slabs for the coloured parallel P2G, and the
+//! occasional reordering of particles by cell for memory locality.
+
+use crate::grid::Grid;
+use crate::kernels::Kernel;
+use crate::math::Vector;
+use crate::particles::Particles;
+use rayon::prelude::*;
+
+/// Particle indices grouped by the x-slab of their first stencil node. Buffers are
+/// allocated once and reused every step.
+pub(crate) struct SlabBins {
+    width: usize,
+    slab_of: Vec<u32>,
+    start: Vec<usize>,
+    order: Vec<u32>,
+}
+
+impl SlabBins {
+    /// Bins for a grid, `width` node planes per slab.
+    pub fn new(nodes_x: usize, width: usize, particles: usize) -> Self {
+        let slabs = nodes_x.div_ceil(width);
+        Self {
+            width,
+            slab_of: vec![0; particles],
+            start: vec![0; slabs + 1],
+            order: vec![0; particles],
+        }
+    }
+
+    /// Number of slabs.
+    pub fn slab_count(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    /// Particles of one slab.
+    pub fn slab(&self, s: usize) -> &[u32] {
+        &self.order[self.start[s]..self.start[s + 1]]
+    }
+
+    /// Re-bins every particle (counting sort, stable).
+    pub fn rebuild<const D: usize, K: Kernel>(&mut self, grid: &Grid<D>, particles: &Particles<D>) {
+        let width = self.width;
+        let slabs = self.slab_count();
+        let (origin, inv_dx) = (grid.origin[0], grid.inv_dx);
+        self.slab_of
+            .par_iter_mut()
+            .zip(particles.position.par_iter())
+            .enumerate()
+            .for_each(|(p, (slab, x))| {
+                let half = if K::USES_PARTICLE_SIZE {
+                    particles.half_size[p]
+                } else {
+                    0.0
+                };
+                let base = K::weights((x[0] - origin) * inv_dx, half).base.max(0) as usize;
+                *slab = (base / width).min(slabs - 1) as u32;
+            });
+        self.start.fill(0);
+        for &s in &self.slab_of {
+            self.start[s as usize + 1] += 1;
+        }
+        for s in 0..slabs {
+            self.start[s + 1] += self.start[s];
+        }
+        // Fill using `start` as running cursors, then shift it back.
+        for (p, &s) in self.slab_of.iter().enumerate() {
+            let cursor = &mut self.start[s as usize];
+            self.order[*cursor] = p as u32;
+            *cursor += 1;
+        }
+        for s in (1..=slabs).rev() {
+            self.start[s] = self.start[s - 1];
+        }
+        self.start[0] = 0;
+    }
+}
+
+/// Reorders particles within each material group by grid cell. Buffers are reused.
+pub(crate) struct Reorder {
+    keys: Vec<u64>,
+    perm: Vec<u32>,
+    visited: Vec<bool>,
+}
+
+impl Reorder {
+    /// Buffers for `n` particles.
+    pub fn new(n: usize) -> Self {
+        Self {
+            keys: vec![0; n],
+            perm: vec![0; n],
+            visited: vec![false; n],
+        }
+    }
+
+    /// Sorts every group's particles by the index of the cell they lie in.
+    pub fn apply<const D: usize>(&mut self, grid: &Grid<D>, p: &mut Particles<D>) {
+        let (origin, inv_dx) = (grid.origin, grid.inv_dx);
+        let cell_key = |x: &Vector<D>| -> u64 {
+            let mut key = 0u64;
+            for d in 0..D {
+                let c = ((x[d] - origin[d]) * inv_dx).max(0.0) as u64;
+                key = key * (grid.cells[d] as u64 + 1) + c;
+            }
+            key
+        };
+        for (k, x) in self.keys.iter_mut().zip(&p.position) {
+            *k = cell_key(x);
+        }
+        for g in 0..p.groups.len() {
+            let range = p.groups[g].range.clone();
+            let perm = &mut self.perm[range.clone()];
+            for (j, v) in perm.iter_mut().enumerate() {
+                *v = j as u32;
+            }
+            let keys = &self.keys[range.clone()];
+            perm.sort_unstable_by_key(|&j| keys[j as usize]);
+            let visited = &mut self.visited[range.clone()];
+            let r = range.clone();
+            gather(&mut p.position[r.clone()], perm, visited);
+            gather(&mut p.velocity[r.clone()], perm, visited);
+            gather(&mut p.mass[r.clone()], perm, visited);
+            gather(&mut p.volume0[r.clone()], perm, visited);
+            gather(&mut p.deformation_gradient[r.clone()], perm, visited);
+            gather(&mut p.stress[r.clone()], perm, visited);
+            gather(&mut p.id[r.clone()], perm, visited);
+            if !p.affine.is_empty() {
+                gather(&mut p.affine[r.clone()], perm, visited);
+            }
+            if !p.velocity_gradient.is_empty() {
+                gather(&mut p.velocity_gradient[r.clone()], perm, visited);
+            }
+            if !p.half_size.is_empty() {
+                gather(&mut p.half_size[r.clone()], perm, visited);
+            }
+            if !p.initial_position.is_empty() {
+                gather(&mut p.initial_position[r.clone()], perm, visited);
+            }
+            let group = &mut p.groups[g];
+            let n = range.len();
+            for field in &mut group.state {
+                let comps = field.len() / n.max(1);
+                gather_strided(field, comps, perm, visited);
+            }
+        }
+    }
+}
+
+/// In place: `a[j] = old a[perm[j]]`, following cycles.
+fn gather<T: Copy>(a: &mut [T], perm: &[u32], visited: &mut [bool]) {
+    visited.fill(false);
+    for start in 0..a.len() {
+        if visited[start] {
+            continue;
+        }
+        let tmp = a[start];
+        let mut j = start;
+        loop {
+            visited[j] = true;
+            let k = perm[j] as usize;
+            if k == start {
+                a[j] = tmp;
+                break;
+            }
+            a[j] = a[k];
+            j = k;
+        }
+    }
+}
+
+/// [`gather`] for arrays holding `comps` numbers per particle.
+fn gather_strided(a: &mut [f64], comps: usize, perm: &[u32], visited: &mut [bool]) {
+    const MAX: usize = 32;
+    assert!(comps <= MAX, "state fields hold at most {MAX} numbers per particle");
+    visited.fill(false);
+    let mut tmp = [0.0; MAX];
+    for start in 0..perm.len() {
+        if visited[start] {
+            continue;
+        }
+        tmp[..comps].copy_from_slice(&a[start * comps..(start + 1) * comps]);
+        let mut j = start;
+        loop {
+            visited[j] = true;
+            let k = perm[j] as usize;
+            if k == start {
+                a[j * comps..(j + 1) * comps].copy_from_slice(&tmp[..comps]);
+                break;
+            }
+            a.copy_within(k * comps..(k + 1) * comps, j * comps);
+            j = k;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gather_applies_the_permutation() {
+        let mut a = [10, 11, 12, 13, 14];
+        let perm = [3u32, 0, 4, 1, 2];
+        let mut visited = [false; 5];
+        gather(&mut a, &perm, &mut visited);
+        assert_eq!(a, [13, 10, 14, 11, 12]);
+        let mut b = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5];
+        gather_strided(&mut b, 2, &perm, &mut visited);
+        assert_eq!(b, [3.0, 3.5, 0.0, 0.5, 4.0, 4.5, 1.0, 1.5, 2.0, 2.5]);
+    }
+}

@@ -1,0 +1,186 @@
+//! G2P: gather grid velocities back to particles (PIC, FLIP/PIC blend or APIC), move them,
+//! and update the deformation gradient from the velocity gradient.
+
+use super::parallel::{SharedSlice, chunk_count, chunk_range};
+use super::stats::{KinematicStats, ParticleFault};
+use super::stencil::{Stencil, stencil_fits};
+use crate::grid::Grid;
+use crate::kernels::Kernel;
+use crate::math::{Matrix, Vector, determinant, inverse};
+use crate::particles::Particles;
+use crate::scene::Transfer;
+use rayon::prelude::*;
+
+/// What one G2P pass updates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct G2pParams<const D: usize> {
+    pub dt: f64,
+    pub transfer: Transfer,
+    pub flip_blend: f64,
+    /// Update particle velocities (and APIC affine matrices).
+    pub velocity: bool,
+    /// Move particles with the grid velocity.
+    pub position: bool,
+    /// Update F from the velocity gradient.
+    pub deformation: bool,
+    /// Use the APIC matrix C as the velocity gradient (MLS-MPM).
+    pub gradient_from_affine: bool,
+    pub gravity: Vector<D>,
+}
+
+/// Gathers from the grid and updates particles; returns the kinematic statistics.
+pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
+    grid: &Grid<D>,
+    particles: &mut Particles<D>,
+    params: G2pParams<D>,
+) -> KinematicStats<D> {
+    let n = particles.len();
+    let dt = params.dt;
+    let inv_dx = grid.inv_dx;
+    let apic = params.transfer == Transfer::Apic;
+    let flip = params.transfer == Transfer::Flip;
+    let store_gradient = !particles.velocity_gradient.is_empty();
+    let Particles {
+        position,
+        velocity,
+        mass,
+        deformation_gradient,
+        affine,
+        velocity_gradient,
+        half_size,
+        ..
+    } = particles;
+    let (mass, half_size) = (&*mass, &*half_size);
+    let position = SharedSlice::new(position);
+    let velocity = SharedSlice::new(velocity);
+    let deformation = SharedSlice::new(deformation_gradient);
+    let affine = SharedSlice::new(affine);
+    let gradient_out = SharedSlice::new(velocity_gradient);
+    let identity = Matrix::<D>::identity();
+
+    (0..chunk_count(n))
+        .into_par_iter()
+        .map(|chunk| {
+            let range = chunk_range(chunk, n);
+            let mut stats = KinematicStats::<D>::default();
+            for p in range {
+                // SAFETY: chunks are disjoint particle ranges; each particle is touched by
+                // exactly one task.
+                let (x, v, f) = unsafe { (position.get(p), velocity.get(p), deformation.get(p)) };
+                let half = if K::USES_PARTICLE_SIZE { half_size[p] } else { 0.0 };
+                let stencil = Stencil::<D>::new::<K>(grid, x, half);
+                let mut v_pic = Vector::<D>::zeros();
+                let mut v_flip_change = Vector::<D>::zeros();
+                let mut b = Matrix::<D>::zeros();
+                let mut inertia = Matrix::<D>::zeros();
+                let mut grad = Matrix::<D>::zeros();
+                let need_b = apic && (params.velocity || params.gradient_from_affine);
+                let need_grad = params.deformation && !params.gradient_from_affine;
+                stencil.for_each::<K>(&grid.stride, |i, w, dw, dpos| {
+                    let vi = grid.momentum[i];
+                    v_pic += vi * w;
+                    if need_b {
+                        b += (vi * w) * dpos.transpose();
+                        if K::APIC_INERTIA.is_none() {
+                            inertia += (dpos * w) * dpos.transpose();
+                        }
+                    }
+                    if need_grad {
+                        grad += vi * dw.transpose();
+                    }
+                    if flip && params.velocity {
+                        v_flip_change += (vi - grid.velocity_old[i]) * w;
+                    }
+                });
+                // Affine matrix C = B·D⁻¹ (offsets in cells, so divide by dx once).
+                let c = if need_b {
+                    match K::APIC_INERTIA {
+                        Some(coef) => b * (inv_dx / coef),
+                        None => inverse(&inertia).map_or(Matrix::<D>::zeros(), |di| b * di * inv_dx),
+                    }
+                } else {
+                    Matrix::<D>::zeros()
+                };
+                if params.velocity {
+                    match params.transfer {
+                        Transfer::Pic => *v = v_pic,
+                        Transfer::Apic => {
+                            *v = v_pic;
+                            // SAFETY: as above.
+                            unsafe { *affine.get(p) = c };
+                        }
+                        Transfer::Flip => {
+                            let a = params.flip_blend;
+                            *v = (*v + v_flip_change) * a + v_pic * (1.0 - a);
+                        }
+                    }
+                }
+                if params.position {
+                    *x += v_pic * dt;
+                }
+                if params.deformation {
+                    let l = if params.gradient_from_affine { c } else { grad * inv_dx };
+                    *f = (identity + l * dt) * *f;
+                    if store_gradient {
+                        // SAFETY: as above.
+                        unsafe { *gradient_out.get(p) = l };
+                    }
+                }
+                // Statistics and checks.
+                let m = mass[p];
+                let speed2 = v.norm_squared();
+                stats.kinetic_energy += 0.5 * m * speed2;
+                stats.momentum += *v * m;
+                stats.gravity_energy -= m * params.gravity.dot(x);
+                stats.max_speed = stats.max_speed.max(speed2);
+                let det = determinant(f);
+                if det < stats.min_det_f {
+                    stats.min_det_f = det;
+                    stats.min_det_particle = p;
+                }
+                if stats.non_finite.is_none() {
+                    let bad = if !speed2.is_finite() {
+                        Some(("v", speed2))
+                    } else if !x.iter().all(|c| c.is_finite()) {
+                        Some(("x", x.norm()))
+                    } else if !det.is_finite() {
+                        Some(("F", det))
+                    } else {
+                        None
+                    };
+                    if let Some((field, value)) = bad {
+                        stats.non_finite = Some(ParticleFault { particle: p, field, value });
+                    }
+                }
+                if params.position && stats.escaped.is_none() && !stencil_fits::<D, K>(grid, x, half)
+                {
+                    stats.escaped = Some(ParticleFault {
+                        particle: p,
+                        field: "x",
+                        value: x.norm(),
+                    });
+                }
+            }
+            stats.max_speed = stats.max_speed.sqrt();
+            stats
+        })
+        .reduce(KinematicStats::default, KinematicStats::merge)
+}
+
+/// Kinematic statistics of the current particle state without changing it.
+pub(crate) fn measure<const D: usize>(particles: &Particles<D>, gravity: Vector<D>) -> KinematicStats<D> {
+    let mut stats = KinematicStats::<D>::default();
+    for p in 0..particles.len() {
+        let (m, v, x) = (particles.mass[p], particles.velocity[p], particles.position[p]);
+        stats.kinetic_energy += 0.5 * m * v.norm_squared();
+        stats.momentum += v * m;
+        stats.gravity_energy -= m * gravity.dot(&x);
+        stats.max_speed = stats.max_speed.max(v.norm());
+        let det = determinant(&particles.deformation_gradient[p]);
+        if det < stats.min_det_f {
+            stats.min_det_f = det;
+            stats.min_det_particle = p;
+        }
+    }
+    stats
+}

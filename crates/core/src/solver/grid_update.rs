@@ -1,0 +1,102 @@
+//! Grid update: momentum to velocity, forces, gravity, damping and boundary conditions.
+
+use super::parallel::SharedSlice;
+use crate::boundary::Boundaries;
+use crate::grid::Grid;
+use crate::math::Vector;
+use rayon::prelude::*;
+
+/// What one grid update applies.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GridParams<const D: usize> {
+    pub dt: f64,
+    /// Apply forces, gravity and damping (false: only turn momentum into velocity and
+    /// apply boundary conditions, as after a velocity remap).
+    pub forces: bool,
+    /// Forces are in `grid.force` (FLIP) and the pre-force velocity is kept.
+    pub flip: bool,
+    pub gravity: Vector<D>,
+    pub damping: f64,
+    /// Time at the end of the step (obstacles move).
+    pub time: f64,
+}
+
+/// Turns nodal momentum into velocity in place and applies forces and boundary conditions.
+pub(crate) fn update_grid<const D: usize>(
+    grid: &mut Grid<D>,
+    boundaries: &Boundaries<D>,
+    params: GridParams<D>,
+) {
+    const CHUNK: usize = 4096;
+    let damping = (-params.damping * params.dt).exp();
+    let old_out = SharedSlice::new(&mut grid.velocity_old);
+    let grid_view = GridGeometry {
+        origin: grid.origin,
+        dx: grid.dx,
+        stride: grid.stride,
+    };
+    let Grid {
+        mass,
+        momentum,
+        force,
+        cells,
+        ..
+    } = &mut *grid;
+    let (mass, force, cells) = (&*mass, &*force, *cells);
+    momentum
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, velocities)| {
+            let start = chunk * CHUNK;
+            for (k, v) in velocities.iter_mut().enumerate() {
+                let i = start + k;
+                let m = mass[i];
+                if m <= 0.0 {
+                    *v = Vector::<D>::zeros();
+                    continue;
+                }
+                *v /= m;
+                if params.flip {
+                    // SAFETY: node ranges of chunks are disjoint.
+                    unsafe { *old_out.get(i) = *v };
+                }
+                if params.forces {
+                    if params.flip {
+                        *v += force[i] * (params.dt / m);
+                    }
+                    *v += params.gravity * params.dt;
+                    *v *= damping;
+                }
+                if !boundaries.is_empty() {
+                    let ijk = grid_view.coords(i);
+                    let x = grid_view.position(ijk);
+                    boundaries.apply(ijk, &cells, &x, params.time, v);
+                }
+            }
+        });
+}
+
+/// The parts of the grid needed to locate a node.
+struct GridGeometry<const D: usize> {
+    origin: Vector<D>,
+    dx: f64,
+    stride: [usize; 3],
+}
+
+impl<const D: usize> GridGeometry<D> {
+    #[inline(always)]
+    fn coords(&self, index: usize) -> [usize; 3] {
+        let i = index / self.stride[0];
+        let rem = index % self.stride[0];
+        [i, rem / self.stride[1], rem % self.stride[1]]
+    }
+
+    #[inline(always)]
+    fn position(&self, ijk: [usize; 3]) -> Vector<D> {
+        let mut x = self.origin;
+        for d in 0..D {
+            x[d] += ijk[d] as f64 * self.dx;
+        }
+        x
+    }
+}

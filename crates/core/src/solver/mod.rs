@@ -1,0 +1,814 @@
+//! The explicit MPM step pipeline and the run loop.
+//!
+//! One step (USL): P2G → grid update → G2P (velocity, position, F) → stress update.
+//! USF updates F and stress from the P2G velocity before the momentum update; MUSL maps the
+//! updated particle velocities back to the grid before updating F (see [`Simulation::step`]).
+
+mod binning;
+mod grid_to_particle;
+mod grid_update;
+mod parallel;
+mod particle_to_grid;
+mod stats;
+mod stencil;
+mod stress_update;
+mod timestep;
+
+use crate::boundary::Boundaries;
+use crate::grid::Grid;
+use crate::kernels::{CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp};
+use crate::material::{BatchStats, FieldInit, Material, StressBatch};
+use crate::math::{Matrix, Vector, determinant, vector_from_slice};
+use crate::output::{
+    Diagnostic, FRAME_DIAGNOSTICS, FieldInfo, Frame, Metrics, OutputError, OutputSink, Outcome,
+    RunInfo,
+};
+use crate::particles::{MaterialGroup, Particles};
+use crate::reference::ReferenceTracker;
+use crate::scene::{KernelName, Scheme, Transfer, ValidatedScene};
+use binning::{Reorder, SlabBins};
+use grid_to_particle::{G2pParams, grid_to_particle, measure};
+use grid_update::{GridParams, update_grid};
+use particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
+use stats::{KinematicStats, ParticleFault};
+use std::time::Instant;
+use stress_update::{StressStats, update_stress};
+
+pub use timestep::stable_time_step;
+
+/// Selects the 2D or 3D stress update of a [`Material`]; implemented for D = 2 and 3 so the
+/// solver can stay generic over the dimension.
+pub trait DimensionDispatch<const D: usize> {
+    /// Updates one batch.
+    fn update(&self, batch: StressBatch<'_, D>) -> BatchStats;
+}
+
+impl DimensionDispatch<2> for dyn Material {
+    fn update(&self, batch: StressBatch<'_, 2>) -> BatchStats {
+        self.update_stress_2d(batch)
+    }
+}
+
+impl DimensionDispatch<3> for dyn Material {
+    fn update(&self, batch: StressBatch<'_, 3>) -> BatchStats {
+        self.update_stress_3d(batch)
+    }
+}
+
+/// Failures that are not a run stopping on its own checks.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The result writer failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// The scene cannot start (a fixed time step above the stable one, say).
+    #[error("{path}: {message}")]
+    Refused {
+        /// JSON path of the setting at fault.
+        path: String,
+        /// Why.
+        message: String,
+    },
+}
+
+/// Progress of a run, reported after every step.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Steps taken.
+    pub step: u64,
+    /// Simulated time.
+    pub time: f64,
+    /// Simulated end time.
+    pub end_time: f64,
+    /// Last time step.
+    pub dt: f64,
+    /// Wall seconds since the start of the loop.
+    pub wall_seconds: f64,
+}
+
+/// What an observer tells the run after a progress report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Control {
+    /// Go on.
+    Continue,
+    /// Stop now, keeping what was written.
+    Cancel,
+}
+
+/// Watches a run (progress bars, job services, cancellation).
+pub trait RunObserver {
+    /// Called after every step; cheap implementations only.
+    fn progress(&mut self, progress: &Progress) -> Control;
+}
+
+impl<F: FnMut(&Progress) -> Control> RunObserver for F {
+    fn progress(&mut self, progress: &Progress) -> Control {
+        self(progress)
+    }
+}
+
+/// Settings of the run taken from the scene.
+#[derive(Clone, Debug)]
+struct Settings<const D: usize> {
+    transfer: Transfer,
+    flip_blend: f64,
+    mls: bool,
+    scheme: Scheme,
+    cfl: f64,
+    fixed_dt: Option<f64>,
+    max_cfl: f64,
+    end_time: f64,
+    gravity: Vector<D>,
+    damping: f64,
+    sort_interval: u32,
+    frames: u32,
+    max_speed: Option<f64>,
+    max_energy_growth: f64,
+    min_dt: f64,
+}
+
+/// An explicit MPM simulation in `D` dimensions with kernel `K`.
+pub struct Simulation<const D: usize, K: Kernel> {
+    /// The background grid.
+    pub grid: Grid<D>,
+    /// The particles.
+    pub particles: Particles<D>,
+    boundaries: Boundaries<D>,
+    settings: Settings<D>,
+    bins: SlabBins,
+    reorder: Reorder,
+    reference: Option<ReferenceTracker>,
+    fields: Vec<FieldInfo>,
+    staging: Vec<Vec<f64>>,
+    scene_json: serde_json::Value,
+    name: String,
+    time: f64,
+    steps: u64,
+    kinematics: KinematicStats<D>,
+    stresses: StressStats,
+    _kernel: std::marker::PhantomData<K>,
+}
+
+/// Receives a simulation built for the scene's dimension and kernel (see [`dispatch`]).
+pub trait SimulationVisitor {
+    /// What the visit returns.
+    type Output;
+    /// Called with the concrete simulation.
+    fn visit<const D: usize, K: Kernel>(self, simulation: Simulation<D, K>) -> Self::Output
+    where
+        dyn Material: DimensionDispatch<D>;
+}
+
+/// Builds the simulation for a validated scene and hands it to `visitor`: the one place that
+/// turns the scene's dimension and kernel into types.
+pub fn dispatch<V: SimulationVisitor>(scene: &ValidatedScene, visitor: V) -> V::Output {
+    match (scene.scene.dimension, scene.scene.solver.kernel) {
+        (2, KernelName::Linear) => visitor.visit(Simulation::<2, Linear>::new(scene)),
+        (2, KernelName::Gimp) => visitor.visit(Simulation::<2, UniformGimp>::new(scene)),
+        (2, KernelName::Bspline2) => visitor.visit(Simulation::<2, QuadraticBSpline>::new(scene)),
+        (2, KernelName::Bspline3) => visitor.visit(Simulation::<2, CubicBSpline>::new(scene)),
+        (_, KernelName::Linear) => visitor.visit(Simulation::<3, Linear>::new(scene)),
+        (_, KernelName::Gimp) => visitor.visit(Simulation::<3, UniformGimp>::new(scene)),
+        (_, KernelName::Bspline2) => visitor.visit(Simulation::<3, QuadraticBSpline>::new(scene)),
+        (_, KernelName::Bspline3) => visitor.visit(Simulation::<3, CubicBSpline>::new(scene)),
+    }
+}
+
+/// Runs a validated scene to its end time (or until it stops), writing to `sink`.
+pub fn run_scene(
+    scene: &ValidatedScene,
+    sink: &mut dyn OutputSink,
+    observer: &mut dyn RunObserver,
+) -> Result<Metrics, RunError> {
+    struct Run<'a> {
+        sink: &'a mut dyn OutputSink,
+        observer: &'a mut dyn RunObserver,
+    }
+    impl SimulationVisitor for Run<'_> {
+        type Output = Result<Metrics, RunError>;
+        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
+        where
+            dyn Material: DimensionDispatch<D>,
+        {
+            sim.run(self.sink, self.observer)
+        }
+    }
+    dispatch(scene, Run { sink, observer })
+}
+
+/// Particle storage a scene allocates, bytes per particle, without running it.
+pub fn bytes_per_particle(scene: &ValidatedScene) -> f64 {
+    struct Bytes;
+    impl SimulationVisitor for Bytes {
+        type Output = f64;
+        fn visit<const D: usize, K: Kernel>(self, sim: Simulation<D, K>) -> f64
+        where
+            dyn Material: DimensionDispatch<D>,
+        {
+            sim.particles.bytes_per_particle()
+        }
+    }
+    dispatch(scene, Bytes)
+}
+
+impl<const D: usize, K: Kernel> Simulation<D, K>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    /// Builds grid and particles for a validated scene; allocates only what it needs.
+    pub fn new(v: &ValidatedScene) -> Self {
+        let s = &v.scene;
+        let dx = s.domain.cell_size;
+        let min: Vector<D> = vector_from_slice(&s.domain.min);
+        let mut cells = [1usize; 3];
+        for d in 0..D {
+            cells[d] = ((s.domain.max[d] - s.domain.min[d]) / dx).ceil() as usize;
+        }
+        let flip = s.solver.transfer == Transfer::Flip;
+        let grid = Grid::new(min, cells, dx, flip);
+
+        let reference = s.reference.clone().map(ReferenceTracker::new);
+        let needs_gradient = v.materials.values().any(|m| m.needs_velocity_gradient());
+        let n = v.particle_count();
+        let alloc_if = |yes: bool| if yes { n } else { 0 };
+        let mut particles = Particles::<D> {
+            position: Vec::with_capacity(n),
+            velocity: Vec::with_capacity(n),
+            mass: Vec::with_capacity(n),
+            volume0: Vec::with_capacity(n),
+            deformation_gradient: vec![Matrix::<D>::identity(); n],
+            stress: vec![Matrix::<D>::zeros(); n],
+            affine: vec![Matrix::<D>::zeros(); alloc_if(s.solver.transfer == Transfer::Apic)],
+            velocity_gradient: vec![Matrix::<D>::zeros(); alloc_if(needs_gradient)],
+            half_size: Vec::with_capacity(alloc_if(K::USES_PARTICLE_SIZE)),
+            initial_position: Vec::with_capacity(alloc_if(
+                reference.as_ref().is_some_and(|r| r.needs_initial_positions()),
+            )),
+            id: Vec::with_capacity(n),
+            groups: Vec::new(),
+        };
+        // Bodies of one material are stored together so each law sees contiguous batches.
+        let mut order: Vec<&crate::scene::BodyParticles> = v.bodies.iter().collect();
+        order.sort_by_key(|b| &s.bodies[b.body].material);
+        let mut output_index = vec![0usize; v.bodies.len()];
+        let mut next = 0;
+        for b in &v.bodies {
+            output_index[b.body] = next;
+            next += b.volumes.len();
+        }
+        for body in order {
+            let name = &s.bodies[body.body].material;
+            let material = v.materials[name].clone();
+            let start = particles.position.len();
+            let count = body.volumes.len();
+            if particles.groups.last().is_none_or(|g| &g.name != name) {
+                particles.groups.push(MaterialGroup {
+                    name: name.clone(),
+                    material: material.clone(),
+                    range: start..start,
+                    state: Vec::new(),
+                });
+            }
+            for p in 0..count {
+                let x: Vector<D> = vector_from_slice(&body.positions[p * D..]);
+                particles.position.push(x);
+                particles.velocity.push(vector_from_slice(&body.velocities[p * D..]));
+                particles.volume0.push(body.volumes[p]);
+                particles.mass.push(body.volumes[p] * material.density());
+                particles.id.push((output_index[body.body] + p) as u32);
+                if K::USES_PARTICLE_SIZE {
+                    particles.half_size.push(0.5 * body.spacing / dx);
+                }
+                if particles.initial_position.capacity() > 0 {
+                    particles.initial_position.push(x);
+                }
+            }
+            particles.groups.last_mut().unwrap().range.end = start + count;
+        }
+        for group in &mut particles.groups {
+            let count = group.range.len();
+            group.state = group
+                .material
+                .state_fields()
+                .iter()
+                .map(|spec| {
+                    let mut field = vec![0.0; count * spec.components];
+                    if spec.initial == FieldInit::Identity {
+                        for p in 0..count {
+                            for d in 0..D {
+                                field[p * spec.components + d * D + d] = 1.0;
+                            }
+                        }
+                    }
+                    field
+                })
+                .collect();
+        }
+
+        let fields = output_fields::<D>(&s.output.fields, &particles);
+        let staging = fields.iter().map(|f| vec![0.0; f.components() * n]).collect();
+        let settings = Settings {
+            transfer: s.solver.transfer,
+            flip_blend: s.solver.flip_blend,
+            mls: s.solver.mls,
+            scheme: s.solver.scheme,
+            cfl: s.solver.cfl,
+            fixed_dt: s.solver.dt,
+            max_cfl: s.solver.max_cfl,
+            end_time: s.solver.end_time,
+            gravity: s
+                .solver
+                .gravity
+                .as_deref()
+                .map(vector_from_slice)
+                .unwrap_or_else(Vector::<D>::zeros),
+            damping: s.solver.damping,
+            sort_interval: s.solver.sort_interval,
+            frames: s.output.frames,
+            max_speed: s.stop.max_speed,
+            max_energy_growth: s.stop.max_energy_growth,
+            min_dt: s.stop.min_dt,
+        };
+        let bins = SlabBins::new(grid.nodes[0], K::SPAN, n);
+        Self {
+            boundaries: Boundaries::new(&s.domain.walls, &s.obstacles),
+            grid,
+            particles,
+            settings,
+            bins,
+            reorder: Reorder::new(n),
+            reference,
+            fields,
+            staging,
+            scene_json: v.json.clone(),
+            name: s.name.clone(),
+            time: 0.0,
+            steps: 0,
+            kinematics: KinematicStats::default(),
+            stresses: StressStats::default(),
+            _kernel: std::marker::PhantomData,
+        }
+    }
+
+    /// Simulated time.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Total momentum of the particles after the last step.
+    pub fn momentum(&self) -> Vector<D> {
+        self.kinematics.momentum
+    }
+
+    /// Kinetic + strain + gravitational energy after the last step.
+    pub fn total_energy(&self) -> f64 {
+        self.kinematics.kinetic_energy + self.stresses.batch.strain_energy + self.kinematics.gravity_energy
+    }
+
+    /// The largest stable step for the current state (Courant number 1).
+    pub fn stable_dt(&self) -> f64 {
+        stable_time_step(
+            self.grid.dx,
+            self.kinematics.max_speed,
+            self.stresses.batch.max_wave_speed,
+        )
+    }
+
+    fn inertia(&self) -> f64 {
+        K::APIC_INERTIA.unwrap_or(0.25)
+    }
+
+    fn p2g(&mut self, dt: f64, mass: bool, force: ForceTerm) {
+        let params = P2gParams {
+            dt,
+            mass,
+            force,
+            force_apart: self.settings.transfer == Transfer::Flip,
+            affine: self.settings.transfer == Transfer::Apic,
+            inertia: self.inertia(),
+        };
+        particle_to_grid::<D, K>(&mut self.grid, &self.particles, &self.bins, params);
+    }
+
+    fn grid_update(&mut self, dt: f64, forces: bool) {
+        let params = GridParams {
+            dt,
+            forces,
+            flip: forces && self.settings.transfer == Transfer::Flip,
+            gravity: self.settings.gravity,
+            damping: self.settings.damping,
+            time: self.time + dt,
+        };
+        update_grid(&mut self.grid, &self.boundaries, params);
+    }
+
+    fn g2p(&mut self, dt: f64, velocity: bool, position: bool, deformation: bool) {
+        let params = G2pParams {
+            dt,
+            transfer: self.settings.transfer,
+            flip_blend: self.settings.flip_blend,
+            velocity,
+            position,
+            deformation,
+            gradient_from_affine: self.settings.mls && velocity && deformation,
+            gravity: self.settings.gravity,
+        };
+        let stats = grid_to_particle::<D, K>(&self.grid, &mut self.particles, params);
+        if velocity {
+            self.kinematics = stats;
+        } else {
+            // A pass that did not change velocities still reports F and position checks.
+            self.kinematics.min_det_f = stats.min_det_f;
+            self.kinematics.min_det_particle = stats.min_det_particle;
+            self.kinematics.non_finite = ParticleFault::first(self.kinematics.non_finite, stats.non_finite);
+            self.kinematics.escaped = ParticleFault::first(self.kinematics.escaped, stats.escaped);
+            self.kinematics.gravity_energy = stats.gravity_energy;
+        }
+    }
+
+    /// Advances one step of size `dt` with the scene's update scheme.
+    pub fn step(&mut self, dt: f64) {
+        let sort = self.settings.sort_interval;
+        if sort > 0 && self.steps % sort as u64 == 0 {
+            self.reorder.apply(&self.grid, &mut self.particles);
+        }
+        self.bins.rebuild::<D, K>(&self.grid, &self.particles);
+        let force = if self.settings.mls {
+            ForceTerm::Mls
+        } else {
+            ForceTerm::Standard
+        };
+        self.grid.clear();
+        match self.settings.scheme {
+            Scheme::Usl => {
+                self.p2g(dt, true, force);
+                self.grid_update(dt, true);
+                self.g2p(dt, true, true, true);
+                self.stresses = update_stress(&mut self.particles, dt);
+            }
+            Scheme::Usf => {
+                self.p2g(dt, true, ForceTerm::None);
+                self.grid_update(dt, false);
+                self.g2p(dt, false, false, true);
+                self.stresses = update_stress(&mut self.particles, dt);
+                self.grid.clear();
+                self.p2g(dt, true, force);
+                self.grid_update(dt, true);
+                self.g2p(dt, true, true, false);
+            }
+            Scheme::Musl => {
+                self.p2g(dt, true, force);
+                self.grid_update(dt, true);
+                self.g2p(dt, true, false, false);
+                // Map the new particle momentum back (mass is unchanged: same positions).
+                self.grid.momentum.fill(Vector::<D>::zeros());
+                self.p2g(dt, false, ForceTerm::None);
+                self.grid_update(dt, false);
+                let velocity_stats = self.kinematics;
+                self.g2p(dt, false, true, true);
+                self.kinematics.kinetic_energy = velocity_stats.kinetic_energy;
+                self.stresses = update_stress(&mut self.particles, dt);
+            }
+        }
+        self.time += dt;
+        self.steps += 1;
+    }
+
+    /// The stress and statistics of the initial state (F = I), before the first step.
+    fn initialise(&mut self) {
+        self.stresses = update_stress(&mut self.particles, 0.0);
+        self.kinematics = measure(&self.particles, self.settings.gravity);
+    }
+
+    /// The first failed check after a step, as a diagnostic.
+    fn check(&self, energy_growth: f64) -> Option<Diagnostic> {
+        let make = |fault: ParticleFault, message: &str| Diagnostic {
+            step: self.steps,
+            time: self.time,
+            particle: Some(self.particles.id[fault.particle] as usize),
+            field: fault.field.into(),
+            value: fault.value,
+            message: message.into(),
+        };
+        if let Some(f) = self.kinematics.non_finite {
+            return Some(make(f, "a particle value became NaN or infinite"));
+        }
+        if let Some(f) = self.stresses.non_finite {
+            return Some(make(f, "a particle stress became NaN or infinite"));
+        }
+        if self.kinematics.min_det_f <= 0.0 {
+            let f = ParticleFault {
+                particle: self.kinematics.min_det_particle,
+                field: "det_f",
+                value: self.kinematics.min_det_f,
+            };
+            return Some(make(f, "det F <= 0: a particle was inverted (time step too large or the mesh is tangled)"));
+        }
+        if let Some(f) = self.kinematics.escaped {
+            return Some(make(f, "a particle left the grid (add walls or enlarge the domain)"));
+        }
+        if let Some(limit) = self.settings.max_speed
+            && self.kinematics.max_speed > limit
+        {
+            return Some(Diagnostic {
+                step: self.steps,
+                time: self.time,
+                particle: None,
+                field: "speed".into(),
+                value: self.kinematics.max_speed,
+                message: format!("the largest particle speed exceeds stop.max_speed = {limit}"),
+            });
+        }
+        if energy_growth > self.settings.max_energy_growth {
+            return Some(Diagnostic {
+                step: self.steps,
+                time: self.time,
+                particle: None,
+                field: "energy".into(),
+                value: energy_growth,
+                message: format!(
+                    "total energy grew by {:.3} of the largest mechanical energy, past stop.max_energy_growth = {}",
+                    energy_growth, self.settings.max_energy_growth
+                ),
+            });
+        }
+        None
+    }
+
+    fn write_frame(&mut self, sink: &mut dyn OutputSink, index: usize, dt: f64) -> Result<(), OutputError> {
+        fill_staging(&self.particles, &self.fields, &mut self.staging);
+        let k = &self.kinematics;
+        let strain = self.stresses.batch.strain_energy;
+        let diagnostics = [
+            self.steps as f64,
+            dt,
+            k.kinetic_energy,
+            strain,
+            k.gravity_energy,
+            k.kinetic_energy + strain + k.gravity_energy,
+            k.max_speed,
+            k.min_det_f,
+        ];
+        debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
+        sink.write_frame(&Frame {
+            index,
+            time: self.time,
+            values: &self.staging,
+            diagnostics: &diagnostics,
+        })
+    }
+
+    /// Runs to the end time, writing frames to `sink` and reporting to `observer`.
+    pub fn run(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        observer: &mut dyn RunObserver,
+    ) -> Result<Metrics, RunError> {
+        self.initialise();
+        let stable = self.stable_dt();
+        if let Some(dt) = self.settings.fixed_dt
+            && dt > self.settings.max_cfl * stable
+        {
+            return Err(RunError::Refused {
+                path: "solver.dt".into(),
+                message: format!(
+                    "the fixed time step {dt:e} s exceeds the stable step {stable:e} s by a factor \
+                     {:.3}; solver.max_cfl allows at most {} (lower dt, or raise max_cfl at your risk)",
+                    dt / stable,
+                    self.settings.max_cfl
+                ),
+            });
+        }
+        let n = self.particles.len();
+        sink.begin(&RunInfo {
+            name: &self.name,
+            dimension: D,
+            particles: n,
+            fields: &self.fields,
+            scene: &self.scene_json,
+        })?;
+        let start = Instant::now();
+        let end_time = self.settings.end_time;
+        let frame_dt = end_time / self.settings.frames as f64;
+        let mut frame = 0usize;
+        let mut dt;
+        self.write_frame(sink, frame, 0.0)?;
+        if let Some(r) = &mut self.reference {
+            r.observe(&self.particles, 0.0, false);
+        }
+        frame += 1;
+        let energy0 = self.total_energy();
+        let mut mechanical_max = self.kinematics.kinetic_energy + self.stresses.batch.strain_energy;
+        let mut drift = 0.0f64;
+        let mut max_drift = 0.0f64;
+        let mut min_det = self.kinematics.min_det_f;
+        let mut max_speed = self.kinematics.max_speed;
+        let mut outcome = Outcome::Finished;
+        let mut diagnostic = None;
+        let eps = 1e-9 * frame_dt;
+        while self.time < end_time - eps {
+            let stable = self.stable_dt();
+            dt = match self.settings.fixed_dt {
+                Some(fixed) => {
+                    if fixed > self.settings.max_cfl * stable {
+                        outcome = Outcome::Stopped;
+                        diagnostic = Some(Diagnostic {
+                            step: self.steps,
+                            time: self.time,
+                            particle: None,
+                            field: "dt".into(),
+                            value: fixed,
+                            message: format!(
+                                "the fixed time step exceeds {} times the stable step {stable:e} s \
+                                 (particles sped up); stopped before it could blow up",
+                                self.settings.max_cfl
+                            ),
+                        });
+                        break;
+                    }
+                    fixed
+                }
+                None => self.settings.cfl * stable,
+            };
+            if dt < self.settings.min_dt || !dt.is_finite() {
+                outcome = Outcome::Stopped;
+                diagnostic = Some(Diagnostic {
+                    step: self.steps,
+                    time: self.time,
+                    particle: None,
+                    field: "dt".into(),
+                    value: dt,
+                    message: format!("the time step fell below stop.min_dt = {:e} s", self.settings.min_dt),
+                });
+                break;
+            }
+            // Land exactly on output times.
+            let next_frame_time = (frame as f64 * frame_dt).min(end_time);
+            if self.time + dt > next_frame_time - eps {
+                dt = next_frame_time - self.time;
+            }
+            self.step(dt);
+            let k = &self.kinematics;
+            let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
+            mechanical_max = mechanical_max.max(mechanical);
+            let energy = self.total_energy();
+            drift = if mechanical_max > 0.0 {
+                (energy - energy0) / mechanical_max
+            } else {
+                0.0
+            };
+            if drift.is_finite() {
+                max_drift = max_drift.max(drift.abs());
+            }
+            min_det = min_det.min(k.min_det_f);
+            max_speed = max_speed.max(k.max_speed);
+            if let Some(d) = self.check(if drift.is_nan() { f64::INFINITY } else { drift }) {
+                outcome = Outcome::Stopped;
+                diagnostic = Some(d);
+                break;
+            }
+            if self.time >= next_frame_time - eps {
+                let last = self.time >= end_time - eps;
+                self.write_frame(sink, frame, dt)?;
+                if let Some(r) = &mut self.reference {
+                    r.observe(&self.particles, self.time, last);
+                }
+                frame += 1;
+            }
+            let progress = Progress {
+                step: self.steps,
+                time: self.time,
+                end_time,
+                dt,
+                wall_seconds: start.elapsed().as_secs_f64(),
+            };
+            if observer.progress(&progress) == Control::Cancel {
+                outcome = Outcome::Cancelled;
+                break;
+            }
+        }
+        let wall = start.elapsed().as_secs_f64();
+        let metrics = Metrics {
+            outcome: Some(outcome),
+            wall_seconds: wall,
+            steps: self.steps,
+            simulated_time: self.time,
+            particles: n,
+            particle_steps_per_second: if wall > 0.0 {
+                self.steps as f64 * n as f64 / wall
+            } else {
+                0.0
+            },
+            bytes_per_particle: self.particles.bytes_per_particle(),
+            grid_bytes: self.grid.bytes(),
+            energy_drift: drift,
+            max_energy_drift: max_drift,
+            error: self.reference.as_ref().and_then(|r| r.error()),
+            error_kind: self.reference.as_ref().map(|r| r.kind().to_string()),
+            reference_value: self.reference.as_ref().and_then(|r| r.expected()),
+            measured_value: self.reference.as_ref().and_then(|r| r.measured()),
+            min_det_f: min_det,
+            max_speed,
+            frames: frame,
+            threads: rayon::current_num_threads(),
+            diagnostic,
+        };
+        sink.finish(&metrics)?;
+        Ok(metrics)
+    }
+}
+
+/// The output fields with their per-particle shapes, in the scene's order.
+fn output_fields<const D: usize>(names: &[String], particles: &Particles<D>) -> Vec<FieldInfo> {
+    names
+        .iter()
+        .map(|name| {
+            let shape = match name.as_str() {
+                "x" | "v" => vec![D],
+                "stress" | "F" => vec![D, D],
+                "J" | "mass" | "volume" | "material" => vec![],
+                other => {
+                    let comps = particles
+                        .groups
+                        .iter()
+                        .flat_map(|g| g.material.state_fields().iter())
+                        .find(|s| s.name == other)
+                        .map_or(1, |s| s.components);
+                    if comps == 1 { vec![] } else { vec![comps] }
+                }
+            };
+            FieldInfo {
+                name: name.clone(),
+                shape,
+            }
+        })
+        .collect()
+}
+
+/// Copies particle fields into the staging buffers in output (id) order.
+fn fill_staging<const D: usize>(p: &Particles<D>, fields: &[FieldInfo], staging: &mut [Vec<f64>]) {
+    for (field, out) in fields.iter().zip(staging.iter_mut()) {
+        let c = field.components();
+        match field.name.as_str() {
+            "x" | "v" => {
+                let src = if field.name == "x" { &p.position } else { &p.velocity };
+                for (i, v) in src.iter().enumerate() {
+                    let o = p.id[i] as usize * c;
+                    out[o..o + D].copy_from_slice(v.as_slice());
+                }
+            }
+            "stress" | "F" => {
+                let src = if field.name == "F" {
+                    &p.deformation_gradient
+                } else {
+                    &p.stress
+                };
+                for (i, m) in src.iter().enumerate() {
+                    let o = p.id[i] as usize * c;
+                    // Row-major [row, column] as numpy expects.
+                    for r in 0..D {
+                        for col in 0..D {
+                            out[o + r * D + col] = m[(r, col)];
+                        }
+                    }
+                }
+            }
+            "J" | "volume" => {
+                for (i, f) in p.deformation_gradient.iter().enumerate() {
+                    let j = determinant(f);
+                    out[p.id[i] as usize] = if field.name == "J" { j } else { j * p.volume0[i] };
+                }
+            }
+            "mass" => {
+                for (i, m) in p.mass.iter().enumerate() {
+                    out[p.id[i] as usize] = *m;
+                }
+            }
+            "material" => {
+                for (g, group) in p.groups.iter().enumerate() {
+                    for i in group.range.clone() {
+                        out[p.id[i] as usize] = g as f64;
+                    }
+                }
+            }
+            name => {
+                for group in &p.groups {
+                    let specs = group.material.state_fields();
+                    let position = specs.iter().position(|s| s.name == name);
+                    for (k, i) in group.range.clone().enumerate() {
+                        let o = p.id[i] as usize * c;
+                        match position {
+                            Some(f) => out[o..o + c].copy_from_slice(&group.state[f][k * c..(k + 1) * c]),
+                            None => out[o..o + c].fill(0.0),
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

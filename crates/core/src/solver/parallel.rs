@@ -1,0 +1,68 @@
+//! Sharing arrays between rayon tasks that write disjoint parts of them.
+//!
+//! Two patterns need it: G2P and the stress update write disjoint particle ranges, and P2G
+//! writes grid slabs that the colouring keeps apart. Each use states why its writes are
+//! disjoint.
+
+use std::ops::Range;
+
+/// A raw pointer to the start of a slice, shareable across threads.
+#[derive(Clone, Copy)]
+pub(crate) struct SharedSlice<T> {
+    ptr: *mut T,
+    len: usize,
+}
+
+// SAFETY: the wrapper only hands out access through the unsafe methods below, whose callers
+// guarantee that no two threads touch the same element.
+unsafe impl<T: Send> Send for SharedSlice<T> {}
+unsafe impl<T: Send> Sync for SharedSlice<T> {}
+
+impl<T> SharedSlice<T> {
+    /// Wraps a slice; the borrow must outlive every use of the wrapper.
+    pub(crate) fn new(slice: &mut [T]) -> Self {
+        Self {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
+        }
+    }
+
+    /// A mutable sub-slice.
+    ///
+    /// # Safety
+    /// No other live reference may overlap `range`, and the wrapped slice must still be alive.
+    #[inline(always)]
+    pub(crate) unsafe fn range<'a>(self, range: Range<usize>) -> &'a mut [T] {
+        if range.is_empty() {
+            return &mut [];
+        }
+        assert!(range.end <= self.len, "shared slice range out of bounds");
+        // SAFETY: in bounds (checked above); exclusivity is the caller's guarantee.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    }
+
+    /// One element, mutably.
+    ///
+    /// # Safety
+    /// No other thread may access element `i` at the same time; `i < len`.
+    #[inline(always)]
+    pub(crate) unsafe fn get<'a>(self, i: usize) -> &'a mut T {
+        debug_assert!(i < self.len);
+        // SAFETY: the caller guarantees bounds and exclusivity.
+        unsafe { &mut *self.ptr.add(i) }
+    }
+}
+
+/// Particles per rayon task in particle-parallel passes.
+pub(crate) const PARTICLE_CHUNK: usize = 2048;
+
+/// The chunk ranges of `0..n`.
+pub(crate) fn chunk_range(chunk: usize, n: usize) -> Range<usize> {
+    let start = chunk * PARTICLE_CHUNK;
+    start..(start + PARTICLE_CHUNK).min(n)
+}
+
+/// Number of chunks covering `0..n`.
+pub(crate) fn chunk_count(n: usize) -> usize {
+    n.div_ceil(PARTICLE_CHUNK)
+}

@@ -1,0 +1,118 @@
+//! P2G: scatter particle mass, momentum (with the APIC affine part) and internal force to the
+//! grid.
+//!
+//! Threads never share a node: particles are binned into slabs along x of width `SPAN`
+//! nodes, and slabs of one colour (even, then odd) run in parallel. A slab writes at most
+//! `2·SPAN - 1` node planes starting at its own, so two slabs of one colour never overlap.
+
+use super::binning::SlabBins;
+use super::parallel::SharedSlice;
+use super::stencil::Stencil;
+use crate::grid::Grid;
+use crate::kernels::Kernel;
+use crate::math::{Matrix, determinant};
+use crate::particles::Particles;
+use rayon::prelude::*;
+
+/// How internal forces enter P2G.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ForceTerm {
+    /// No stress term (velocity remaps).
+    None,
+    /// f_i = -Σ V_p σ_p ∇w_ip.
+    Standard,
+    /// MLS-MPM: the stress enters the affine momentum, f_i = -Σ V_p σ_p D⁻¹ (x_i - x_p) w_ip.
+    Mls,
+}
+
+/// What one P2G pass scatters.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct P2gParams {
+    pub dt: f64,
+    /// Scatter mass too (false for a velocity remap, where the mass is already there).
+    pub mass: bool,
+    pub force: ForceTerm,
+    /// Keep forces in `grid.force` (FLIP) instead of folding `dt·f` into the momentum.
+    pub force_apart: bool,
+    /// Use the particles' affine matrices (APIC).
+    pub affine: bool,
+    /// APIC inertia coefficient c (D = c·dx²·I) for the MLS force.
+    pub inertia: f64,
+}
+
+/// Scatters particle quantities onto the (cleared) grid.
+pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
+    grid: &mut Grid<D>,
+    particles: &Particles<D>,
+    bins: &SlabBins,
+    params: P2gParams,
+) {
+    let dx = grid.dx;
+    let inv_dx = grid.inv_dx;
+    let stride = grid.stride;
+    let mass_out = SharedSlice::new(&mut grid.mass);
+    let momentum_out = SharedSlice::new(&mut grid.momentum);
+    let force_out = SharedSlice::new(&mut grid.force);
+    let grid = &*grid;
+    for colour in 0..2 {
+        (0..bins.slab_count())
+            .into_par_iter()
+            .filter(|s| s % 2 == colour)
+            .for_each(|slab| {
+                for &p in bins.slab(slab) {
+                    let p = p as usize;
+                    let x = particles.position[p];
+                    let half = if K::USES_PARTICLE_SIZE {
+                        particles.half_size[p]
+                    } else {
+                        0.0
+                    };
+                    let stencil = Stencil::<D>::new::<K>(grid, &x, half);
+                    let m = particles.mass[p];
+                    let mv = particles.velocity[p] * m;
+                    // Affine momentum per cell of offset: Q·(x_i - x_p) with offsets in cells.
+                    let mut q = Matrix::<D>::zeros();
+                    if params.affine {
+                        q += particles.affine[p] * (m * dx);
+                    }
+                    // Standard force per unit weight gradient (grid units).
+                    let mut s = Matrix::<D>::zeros();
+                    match params.force {
+                        ForceTerm::None => {}
+                        ForceTerm::Standard => {
+                            let f = &particles.deformation_gradient[p];
+                            let volume = particles.volume0[p] * determinant(f);
+                            s = particles.stress[p] * (-volume * inv_dx);
+                        }
+                        ForceTerm::Mls => {
+                            let f = &particles.deformation_gradient[p];
+                            let volume = particles.volume0[p] * determinant(f);
+                            q -= particles.stress[p]
+                                * (params.dt * volume / (params.inertia * dx * dx) * dx);
+                        }
+                    }
+                    let fold = if params.force_apart { 0.0 } else { params.dt };
+                    stencil.for_each::<K>(&stride, |i, w, grad, dpos| {
+                        // SAFETY: the slab colouring gives this task exclusive access to
+                        // every node its particles touch (module docs); `i` is on the grid
+                        // because positions are checked against the grid after every move.
+                        unsafe {
+                            if params.mass {
+                                *mass_out.get(i) += w * m;
+                            }
+                            let mut add = (mv + q * dpos) * w;
+                            if params.force == ForceTerm::Standard {
+                                let f = s * grad;
+                                if params.force_apart {
+                                    *force_out.get(i) += f;
+                                } else {
+                                    add += f * fold;
+                                }
+                            }
+                            *momentum_out.get(i) += add;
+                        }
+                    });
+                }
+            });
+    }
+}

@@ -1,0 +1,74 @@
+//! Per-step statistics gathered inside the particle passes (no extra sweep).
+
+use crate::math::Vector;
+
+/// A problem found at one particle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ParticleFault {
+    pub particle: usize,
+    pub field: &'static str,
+    pub value: f64,
+}
+
+impl ParticleFault {
+    /// Keeps the fault of the lower particle index, so results do not depend on threads.
+    pub fn first(a: Option<Self>, b: Option<Self>) -> Option<Self> {
+        match (a, b) {
+            (Some(x), Some(y)) => Some(if x.particle <= y.particle { x } else { y }),
+            (x, None) => x,
+            (None, y) => y,
+        }
+    }
+}
+
+/// Kinematic figures of the particles after a velocity/position/F update.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct KinematicStats<const D: usize> {
+    pub kinetic_energy: f64,
+    pub momentum: Vector<D>,
+    /// Potential energy of gravity, -Σ m g·x.
+    pub gravity_energy: f64,
+    pub max_speed: f64,
+    pub min_det_f: f64,
+    pub min_det_particle: usize,
+    /// NaN/inf in a particle field.
+    pub non_finite: Option<ParticleFault>,
+    /// A particle whose stencil left the grid.
+    pub escaped: Option<ParticleFault>,
+}
+
+impl<const D: usize> Default for KinematicStats<D> {
+    fn default() -> Self {
+        Self {
+            kinetic_energy: 0.0,
+            momentum: Vector::<D>::zeros(),
+            gravity_energy: 0.0,
+            max_speed: 0.0,
+            min_det_f: f64::INFINITY,
+            min_det_particle: 0,
+            non_finite: None,
+            escaped: None,
+        }
+    }
+}
+
+impl<const D: usize> KinematicStats<D> {
+    /// Combines two partial results.
+    pub fn merge(self, o: Self) -> Self {
+        let (min_det_f, min_det_particle) = if o.min_det_f < self.min_det_f {
+            (o.min_det_f, o.min_det_particle)
+        } else {
+            (self.min_det_f, self.min_det_particle)
+        };
+        Self {
+            kinetic_energy: self.kinetic_energy + o.kinetic_energy,
+            momentum: self.momentum + o.momentum,
+            gravity_energy: self.gravity_energy + o.gravity_energy,
+            max_speed: self.max_speed.max(o.max_speed),
+            min_det_f,
+            min_det_particle,
+            non_finite: ParticleFault::first(self.non_finite, o.non_finite),
+            escaped: ParticleFault::first(self.escaped, o.escaped),
+        }
+    }
+}

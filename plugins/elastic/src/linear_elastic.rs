@@ -1,0 +1,48 @@
+//! Linear elasticity with the small-strain tensor ε = sym(F) − I: exact for verification
+//! problems with small displacements, wrong under large rotations.
+
+use crate::ElasticParameters;
+use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, lame_parameters};
+use mpm_core::math::{Matrix, trace};
+
+/// σ = λ tr(ε) I + 2 μ ε.
+#[derive(Clone, Debug)]
+pub struct LinearElastic {
+    params: ElasticParameters,
+    lambda: f64,
+    mu: f64,
+}
+
+impl LinearElastic {
+    /// From density, Young's modulus and Poisson's ratio.
+    pub fn new(params: ElasticParameters) -> Self {
+        let (lambda, mu) = lame_parameters(params.youngs_modulus, params.poisson_ratio);
+        Self { params, lambda, mu }
+    }
+}
+
+impl ConstitutiveLaw for LinearElastic {
+    fn density(&self) -> f64 {
+        self.params.density
+    }
+
+    fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
+        let identity = Matrix::<D>::identity();
+        let mut energy = 0.0;
+        for ((f, stress), v0) in batch
+            .deformation_gradient
+            .iter()
+            .zip(batch.stress.iter_mut())
+            .zip(batch.volume0)
+        {
+            let strain = (f + f.transpose()) * 0.5 - identity;
+            let tr = trace(&strain);
+            *stress = identity * (self.lambda * tr) + strain * (2.0 * self.mu);
+            energy += v0 * (0.5 * self.lambda * tr * tr + self.mu * strain.norm_squared());
+        }
+        BatchStats {
+            strain_energy: energy,
+            max_wave_speed: self.params.wave_speed(),
+        }
+    }
+}
