@@ -1,1 +1,48 @@
+//! The `mpm` command as a library: the binary is `main_with(default_registry())`, and a
+//! plugin author builds their own `mpm` with one more line (see the plugin template).
 
+mod commands;
+mod overrides;
+mod progress;
+
+pub use commands::{Cli, Command, ExitStatus, load_scene, run_cli};
+pub use overrides::apply_override;
+
+use mpm_core::plugin::Registry;
+
+/// The registry of the stock `mpm` binary: every plugin in this repository, and the Zarr
+/// reader for bodies made from result stores.
+pub fn default_registry() -> Registry {
+    let mut registry = Registry::new();
+    registry
+        .register(Box::new(mpm_elastic::ElasticPlugin))
+        .expect("built-in plugins have distinct names");
+    registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
+    registry
+}
+
+/// The JSON Schema of a scene file, with the material sections of every registered plugin.
+pub fn scene_schema(registry: &Registry) -> serde_json::Value {
+    let mut schema = schemars::schema_for!(mpm_core::scene::Scene).to_value();
+    let materials: Vec<serde_json::Value> = registry
+        .material_types()
+        .map(|t| registry.material(t).expect("listed").schema())
+        .collect();
+    if let Some(slot) = schema.pointer_mut("/properties/materials") {
+        slot["additionalProperties"] = serde_json::json!({ "oneOf": materials });
+    }
+    schema
+}
+
+/// Parses the command line, runs it with `registry`, and returns the process exit code.
+pub fn main_with(registry: Registry) -> std::process::ExitCode {
+    use clap::Parser;
+    let cli = Cli::parse();
+    match run_cli(cli, &registry) {
+        Ok(status) => status.into(),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitStatus::Failure.into()
+        }
+    }
+}

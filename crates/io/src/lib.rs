@@ -1,1 +1,47 @@
+//! Result stores of mpm runs: a Zarr v3 writer (one store per run), a reader for particles
+//! and metadata, and a VTK exporter for ParaView. Knows no physics: it stores what the core
+//! hands it.
+//!
+//! Layout of a store:
+//! - `time`: float64 `[frame]`
+//! - `particles/<field>`: float64 `[frame, particle, components...]`, one chunk per frame,
+//!   zstd-compressed
+//! - `diagnostics/<name>`: float64 `[frame]` (energies, max speed, min det F, dt, step)
+//! - root attributes: `scene`, `mpm_version`, `dimension`, `particles`, `metrics`
 
+mod vtk;
+mod zarr_reader;
+mod zarr_writer;
+
+pub use vtk::export_vtk;
+pub use zarr_reader::{ResultStore, read_particles};
+pub use zarr_writer::ZarrSink;
+
+/// Failures reading or writing result stores.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// A filesystem operation failed.
+    #[error("{path}: {source}")]
+    File {
+        /// The path involved.
+        path: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The Zarr library reported a problem.
+    #[error("zarr store {path}: {message}")]
+    Zarr {
+        /// Store path.
+        path: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// The store is not one this program wrote, or is damaged.
+    #[error("{path}: {message}")]
+    Layout {
+        /// Store path.
+        path: String,
+        /// What is missing or wrong.
+        message: String,
+    },
+}

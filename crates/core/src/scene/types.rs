@@ -99,14 +99,15 @@ pub struct Wall {
     pub sides: Vec<Side>,
     /// How the wall constrains the grid velocity.
     pub condition: Contact,
-    /// Nodes with index < thickness from the face are wall nodes (the wall surface lies
-    /// `thickness - 1` cells inside the face). At least 1.
+    /// Node layers constrained, counted from the face inward: the wall surface lies
+    /// `thickness - 1` cells inside the face (1: on the face). Stick walls also give the
+    /// ghost nodes behind the surface mirrored velocities, so the clamp is exact there.
     #[serde(default = "default_wall_thickness")]
     pub thickness: u32,
 }
 
 fn default_wall_thickness() -> u32 {
-    2
+    1
 }
 
 /// How a wall or obstacle acts on the grid velocity relative to its own velocity.
@@ -444,7 +445,7 @@ impl Default for StopCriteria {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Reference {
     /// First axial mode of a fixed–free elastic bar; error: relative L2 error of particle
-    /// velocity over all output frames.
+    /// displacement over all output frames.
     VibratingBar {
         /// Axis of the bar.
         axis: usize,

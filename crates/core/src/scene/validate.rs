@@ -201,10 +201,10 @@ impl Validator {
                 let mut nodes = 1f64;
                 for a in 0..self.dim {
                     let cells = ((d.max[a] - d.min[a]) / d.cell_size).ceil();
-                    if cells < 4.0 {
+                    if cells < 1.0 {
                         self.err(
                             "domain.cell_size",
-                            format!("the domain must be at least 4 cells wide on axis {a}"),
+                            format!("the domain must be at least one cell wide on axis {a}"),
                         );
                     }
                     nodes *= cells + 1.0;
@@ -565,13 +565,13 @@ impl Validator {
                 );
                 continue;
             }
-            // Every particle must sit at least one cell inside the domain so that every
-            // kernel's stencil stays on the grid.
+            // Every particle must lie in the domain (the grid is padded beyond it so every
+            // kernel's stencil fits).
             let mut outside = None;
             for p in 0..n {
                 for a in 0..dim {
                     let x = body.positions[p * dim + a];
-                    if !(x >= s.domain.min[a] + dx && x <= s.domain.max[a] - dx) {
+                    if !(x >= s.domain.min[a] && x <= s.domain.max[a]) {
                         outside = Some((p, a, x));
                         break;
                     }
@@ -584,10 +584,9 @@ impl Validator {
                 self.err(
                     format!("{path}.shape"),
                     format!(
-                        "particle {p} lies at {x} on axis {a}, outside the domain or within one \
-                         cell of its boundary ([{}, {}] allowed)",
-                        s.domain.min[a] + dx,
-                        s.domain.max[a] - dx
+                        "particle {p} lies at {x} on axis {a}, outside the domain [{}, {}]",
+                        s.domain.min[a],
+                        s.domain.max[a]
                     ),
                 );
                 continue;

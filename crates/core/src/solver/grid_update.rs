@@ -28,6 +28,7 @@ pub(crate) fn update_grid<const D: usize>(
     params: GridParams<D>,
 ) {
     const CHUNK: usize = 4096;
+    boundaries.fold_stick_walls(grid);
     let damping = (-params.damping * params.dt).exp();
     let old_out = SharedSlice::new(&mut grid.velocity_old);
     let grid_view = GridGeometry {
@@ -39,10 +40,9 @@ pub(crate) fn update_grid<const D: usize>(
         mass,
         momentum,
         force,
-        cells,
         ..
     } = &mut *grid;
-    let (mass, force, cells) = (&*mass, &*force, *cells);
+    let (mass, force) = (&*mass, &*force);
     momentum
         .par_chunks_mut(CHUNK)
         .enumerate()
@@ -70,10 +70,11 @@ pub(crate) fn update_grid<const D: usize>(
                 if !boundaries.is_empty() {
                     let ijk = grid_view.coords(i);
                     let x = grid_view.position(ijk);
-                    boundaries.apply(ijk, &cells, &x, params.time, v);
+                    boundaries.apply(ijk, &x, params.time, v);
                 }
             }
         });
+    boundaries.mirror_stick_walls(grid);
 }
 
 /// The parts of the grid needed to locate a node.

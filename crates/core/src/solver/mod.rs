@@ -219,10 +219,14 @@ where
     pub fn new(v: &ValidatedScene) -> Self {
         let s = &v.scene;
         let dx = s.domain.cell_size;
-        let min: Vector<D> = vector_from_slice(&s.domain.min);
+        let pad = crate::boundary::GRID_PADDING;
+        let mut min: Vector<D> = vector_from_slice(&s.domain.min);
+        let mut domain_cells = [1usize; 3];
         let mut cells = [1usize; 3];
         for d in 0..D {
-            cells[d] = ((s.domain.max[d] - s.domain.min[d]) / dx).ceil() as usize;
+            domain_cells[d] = ((s.domain.max[d] - s.domain.min[d]) / dx - 1e-9).ceil() as usize;
+            cells[d] = domain_cells[d] + 2 * pad;
+            min[d] -= pad as f64 * dx;
         }
         let flip = s.solver.transfer == Transfer::Flip;
         let grid = Grid::new(min, cells, dx, flip);
@@ -331,7 +335,7 @@ where
         };
         let bins = SlabBins::new(grid.nodes[0], K::SPAN, n);
         Self {
-            boundaries: Boundaries::new(&s.domain.walls, &s.obstacles),
+            boundaries: Boundaries::new(&s.domain.walls, &s.obstacles, domain_cells),
             grid,
             particles,
             settings,

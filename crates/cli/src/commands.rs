@@ -1,0 +1,245 @@
+//! The subcommands of `mpm`.
+
+use crate::overrides::apply_override;
+use crate::progress::ProgressReporter;
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use mpm_core::output::{Metrics, Outcome};
+use mpm_core::plugin::Registry;
+use mpm_core::scene::{SceneError, ValidatedScene, parse_scene_value};
+use mpm_core::solver::{RunError, run_scene};
+use std::path::{Path, PathBuf};
+
+/// Command-line interface of `mpm`.
+#[derive(Debug, Parser)]
+#[command(name = "mpm", version, about = "Material point method simulator")]
+pub struct Cli {
+    /// Worker threads (default: every core).
+    #[arg(long, global = true, env = "MPM_THREADS")]
+    pub threads: Option<usize>,
+    /// The subcommand.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run a scene locally and write DIR/<name>.zarr.
+    Run {
+        /// Scene file (JSON).
+        scene: PathBuf,
+        /// Output folder.
+        #[arg(long, default_value = "results")]
+        out: PathBuf,
+        /// Change a scene value first, e.g. `--set solver.end_time=0.1` (repeatable).
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+        /// Print the metrics as JSON on stdout instead of the summary.
+        #[arg(long)]
+        json: bool,
+        /// No progress output.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Check a scene file without running it.
+    Validate {
+        /// Scene file (JSON).
+        scene: PathBuf,
+        /// Change a scene value first (repeatable).
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+    },
+    /// Export a result store to VTK (.pvd + .vtu) for ParaView.
+    Export {
+        /// Result store (`results/<name>.zarr`).
+        store: PathBuf,
+        /// Folder for the VTK files.
+        #[arg(long)]
+        vtk: PathBuf,
+    },
+    /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
+    Schema,
+    /// List the registered plugins and their material types.
+    Plugins {
+        /// Print every material's JSON Schema too.
+        #[arg(long)]
+        schemas: bool,
+    },
+}
+
+/// How `mpm` exits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExitStatus {
+    /// Done.
+    Success,
+    /// An operational failure (files, store).
+    Failure,
+    /// Bad input: an invalid scene or option; nothing was written.
+    InvalidInput,
+    /// The run stopped on a check (NaN, det F <= 0, ...); frames written so far are kept.
+    Stopped,
+}
+
+impl From<ExitStatus> for std::process::ExitCode {
+    fn from(s: ExitStatus) -> Self {
+        std::process::ExitCode::from(match s {
+            ExitStatus::Success => 0,
+            ExitStatus::Failure => 1,
+            ExitStatus::InvalidInput => 2,
+            ExitStatus::Stopped => 3,
+        })
+    }
+}
+
+/// A scene file that failed to load: unreadable, or invalid.
+pub enum LoadError {
+    /// Could not read the file.
+    Io(anyhow::Error),
+    /// The scene is invalid.
+    Invalid(SceneError),
+}
+
+/// Reads, overrides and validates a scene file.
+pub fn load_scene(
+    path: &Path,
+    overrides: &[String],
+    registry: &Registry,
+) -> Result<ValidatedScene, LoadError> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read scene file `{}`", path.display()))
+        .map_err(LoadError::Io)?;
+    let mut value: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        LoadError::Invalid(SceneError::single(
+            "$",
+            format!("not valid JSON: {e}"),
+        ))
+    })?;
+    for o in overrides {
+        apply_override(&mut value, o)
+            .map_err(|e| LoadError::Invalid(SceneError::single("--set", format!("{e:#}"))))?;
+    }
+    let base = path.parent().unwrap_or(Path::new("."));
+    parse_scene_value(value, registry, base).map_err(LoadError::Invalid)
+}
+
+fn report_load_error(path: &Path, e: LoadError) -> ExitStatus {
+    match e {
+        LoadError::Io(e) => {
+            eprintln!("error: {e:#}");
+            ExitStatus::InvalidInput
+        }
+        LoadError::Invalid(e) => {
+            eprintln!("error: {}: {e}", path.display());
+            ExitStatus::InvalidInput
+        }
+    }
+}
+
+/// Runs a parsed command line.
+pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
+    if let Some(threads) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .context("setting the thread count")?;
+    }
+    match cli.command {
+        Command::Validate { scene, set } => match load_scene(&scene, &set, registry) {
+            Ok(v) => {
+                println!(
+                    "{}: valid ({}D, {} particles in {} bodies, {} material(s))",
+                    scene.display(),
+                    v.scene.dimension,
+                    v.particle_count(),
+                    v.scene.bodies.len(),
+                    v.materials.len()
+                );
+                Ok(ExitStatus::Success)
+            }
+            Err(e) => Ok(report_load_error(&scene, e)),
+        },
+        Command::Run {
+            scene,
+            out,
+            set,
+            json,
+            quiet,
+        } => {
+            let validated = match load_scene(&scene, &set, registry) {
+                Ok(v) => v,
+                Err(e) => return Ok(report_load_error(&scene, e)),
+            };
+            let store = out.join(format!("{}.zarr", validated.scene.name));
+            let mut sink = mpm_io::ZarrSink::new(&store);
+            let mut progress = ProgressReporter::new(quiet || json);
+            let result = run_scene(&validated, &mut sink, &mut progress);
+            progress.finish();
+            let metrics = match result {
+                Ok(m) => m,
+                Err(RunError::Refused { path, message }) => {
+                    eprintln!("error: {}: {path}: {message}", scene.display());
+                    return Ok(ExitStatus::InvalidInput);
+                }
+                Err(e) => return Err(e.into()),
+            };
+            if json {
+                println!("{}", serde_json::to_string_pretty(&metrics)?);
+            } else {
+                print_summary(&validated, &metrics, &store);
+            }
+            Ok(match metrics.outcome {
+                Some(Outcome::Finished) => ExitStatus::Success,
+                _ => ExitStatus::Stopped,
+            })
+        }
+        Command::Export { store, vtk } => {
+            let pvd = mpm_io::export_vtk(&store, &vtk)?;
+            println!("wrote {}", pvd.display());
+            Ok(ExitStatus::Success)
+        }
+        Command::Schema => {
+            println!("{}", serde_json::to_string_pretty(&crate::scene_schema(registry))?);
+            Ok(ExitStatus::Success)
+        }
+        Command::Plugins { schemas } => {
+            for plugin in registry.plugins() {
+                println!("{}: {}", plugin.name(), plugin.description());
+                for (material, schema) in registry.materials_of(plugin.name()) {
+                    println!("  material `{material}`");
+                    if schemas {
+                        println!("{}", serde_json::to_string_pretty(&schema)?);
+                    }
+                }
+            }
+            Ok(ExitStatus::Success)
+        }
+    }
+}
+
+fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) {
+    let s = &v.scene;
+    println!("scene          {} ({}D, {:?} kernel, {:?}{}, {:?})", s.name, s.dimension, s.solver.kernel, s.solver.transfer, if s.solver.mls { " + MLS" } else { "" }, s.solver.scheme);
+    println!("outcome        {:?}", m.outcome.unwrap_or(Outcome::Stopped));
+    if let Some(d) = &m.diagnostic {
+        let particle = d.particle.map(|p| format!(", particle {p}")).unwrap_or_default();
+        println!(
+            "diagnostic     step {}, t = {:.6e} s{particle}, {} = {:.6e}: {}",
+            d.step, d.time, d.field, d.value, d.message
+        );
+    }
+    println!("particles      {}", m.particles);
+    println!("steps          {} to t = {:.6e} s", m.steps, m.simulated_time);
+    println!("wall time      {:.3} s on {} threads", m.wall_seconds, m.threads);
+    println!("speed          {:.3e} particle-steps/s", m.particle_steps_per_second);
+    println!("memory         {:.0} bytes/particle, grid {:.1} MB", m.bytes_per_particle, m.grid_bytes as f64 / 1e6);
+    println!("energy drift   {:+.3e} (max |drift| {:.3e})", m.energy_drift, m.max_energy_drift);
+    println!("min det F      {:.6}", m.min_det_f);
+    if let Some(e) = m.error {
+        println!("error          {e:.4e}  ({})", m.error_kind.as_deref().unwrap_or(""));
+        if let (Some(r), Some(x)) = (m.reference_value, m.measured_value) {
+            println!("               reference {r:.6e}, measured {x:.6e}");
+        }
+    }
+    println!("results        {} ({} frames)", store.display(), m.frames);
+}

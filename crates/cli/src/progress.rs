@@ -1,0 +1,65 @@
+//! Progress reporting for `mpm run`: a bar on a terminal, plain lines otherwise.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use mpm_core::solver::{Control, Progress, RunObserver};
+use std::io::IsTerminal;
+
+/// Shows progress at a bounded rate.
+pub struct ProgressReporter {
+    bar: Option<ProgressBar>,
+    next_line_fraction: f64,
+    quiet: bool,
+}
+
+impl ProgressReporter {
+    /// A bar when stderr is a terminal; lines every 10% otherwise; nothing when quiet.
+    pub fn new(quiet: bool) -> Self {
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let bar = ProgressBar::new(1000);
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{bar:40} {percent:>3}% {msg} [{elapsed_precise} < {eta_precise}]",
+                )
+                .expect("valid template"),
+            );
+            bar
+        });
+        Self {
+            bar,
+            next_line_fraction: 0.1,
+            quiet,
+        }
+    }
+
+    /// Clears the bar.
+    pub fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+impl RunObserver for ProgressReporter {
+    fn progress(&mut self, p: &Progress) -> Control {
+        let fraction = (p.time / p.end_time).clamp(0.0, 1.0);
+        if let Some(bar) = &self.bar {
+            if p.step % 16 == 0 || fraction >= 1.0 {
+                bar.set_position((fraction * 1000.0) as u64);
+                bar.set_message(format!("t = {:.4e} s, step {}, dt = {:.2e} s", p.time, p.step, p.dt));
+            }
+        } else if !self.quiet && fraction + 1e-12 >= self.next_line_fraction {
+            eprintln!(
+                "progress {:>3.0}%  t = {:.4e} s  step {}  dt = {:.2e} s  wall {:.1} s",
+                fraction * 100.0,
+                p.time,
+                p.step,
+                p.dt,
+                p.wall_seconds
+            );
+            while self.next_line_fraction <= fraction + 1e-12 {
+                self.next_line_fraction += 0.1;
+            }
+        }
+        Control::Continue
+    }
+}

@@ -1,0 +1,135 @@
+//! Reads result stores back: metadata, frames of particle fields, and particles to start a
+//! new body from.
+
+use crate::IoError;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use zarrs::array::Array;
+use zarrs::filesystem::FilesystemStore;
+use zarrs::group::Group;
+
+/// An open result store.
+pub struct ResultStore {
+    path: PathBuf,
+    store: Arc<FilesystemStore>,
+    attributes: serde_json::Map<String, serde_json::Value>,
+}
+
+fn zerr(path: &Path, e: impl std::fmt::Display) -> IoError {
+    IoError::Zarr {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+impl ResultStore {
+    /// Opens a store written by `mpm run`.
+    pub fn open(path: impl Into<PathBuf>) -> Result<Self, IoError> {
+        let path = path.into();
+        if !path.join("zarr.json").is_file() {
+            return Err(IoError::Layout {
+                path: path.display().to_string(),
+                message: "not a Zarr v3 store (no zarr.json)".into(),
+            });
+        }
+        let store = Arc::new(FilesystemStore::new(&path).map_err(|e| zerr(&path, e))?);
+        let root = Group::open(store.clone(), "/").map_err(|e| zerr(&path, e))?;
+        let attributes = root.attributes().clone();
+        if !attributes.contains_key("mpm_version") {
+            return Err(IoError::Layout {
+                path: path.display().to_string(),
+                message: "not a store written by mpm (no mpm_version attribute)".into(),
+            });
+        }
+        Ok(Self {
+            path,
+            store,
+            attributes,
+        })
+    }
+
+    /// Root attributes (`scene`, `metrics`, ...).
+    pub fn attributes(&self) -> &serde_json::Map<String, serde_json::Value> {
+        &self.attributes
+    }
+
+    /// Spatial dimension of the run.
+    pub fn dimension(&self) -> usize {
+        self.attributes
+            .get("dimension")
+            .and_then(|d| d.as_u64())
+            .unwrap_or(3) as usize
+    }
+
+    /// Output times.
+    pub fn times(&self) -> Result<Vec<f64>, IoError> {
+        let array = Array::open(self.store.clone(), "/time").map_err(|e| zerr(&self.path, e))?;
+        array
+            .retrieve_array_subset::<Vec<f64>>(&array.subset_all())
+            .map_err(|e| zerr(&self.path, e))
+    }
+
+    /// Names of the stored particle fields.
+    pub fn fields(&self) -> Result<Vec<String>, IoError> {
+        let dir = self.path.join("particles");
+        let entries = std::fs::read_dir(&dir).map_err(|source| IoError::File {
+            path: dir.display().to_string(),
+            source,
+        })?;
+        let mut names: Vec<String> = entries
+            .filter_map(|e| e.ok())
+            .filter(|e| e.path().join("zarr.json").is_file())
+            .filter_map(|e| e.file_name().into_string().ok())
+            .collect();
+        names.sort();
+        Ok(names)
+    }
+
+    /// One frame of a field: its per-particle shape and values (particle-major).
+    pub fn frame(&self, field: &str, frame: u64) -> Result<(Vec<u64>, Vec<f64>), IoError> {
+        let array = Array::open(self.store.clone(), &format!("/particles/{field}"))
+            .map_err(|e| zerr(&self.path, e))?;
+        let shape = array.shape().to_vec();
+        if frame >= shape[0] {
+            return Err(IoError::Layout {
+                path: self.path.display().to_string(),
+                message: format!("field `{field}` has {} frames, not {}", shape[0], frame + 1),
+            });
+        }
+        let mut chunk = vec![0u64; shape.len()];
+        chunk[0] = frame;
+        let values = array
+            .retrieve_chunk::<Vec<f64>>(&chunk)
+            .map_err(|e| zerr(&self.path, e))?;
+        Ok((shape[1..].to_vec(), values))
+    }
+
+    /// Number of frames stored.
+    pub fn frame_count(&self) -> Result<u64, IoError> {
+        Ok(self.times()?.len() as u64)
+    }
+}
+
+/// Reads the last frame's positions (and volumes when stored) of a result store, to start a
+/// body from it; `spacing^dim` is the volume when the store has none.
+pub fn read_particles(path: &Path, dim: usize, spacing: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let store = ResultStore::open(path).map_err(|e| e.to_string())?;
+    if store.dimension() != dim {
+        return Err(format!(
+            "`{}` holds a {}D run; this scene is {dim}D",
+            path.display(),
+            store.dimension()
+        ));
+    }
+    let frames = store.frame_count().map_err(|e| e.to_string())?;
+    if frames == 0 {
+        return Err(format!("`{}` has no frames", path.display()));
+    }
+    let (_, positions) = store.frame("x", frames - 1).map_err(|e| e.to_string())?;
+    let n = positions.len() / dim;
+    let volumes = match store.frame("volume", frames - 1) {
+        Ok((_, v)) => v,
+        Err(_) => vec![spacing.powi(dim as i32); n],
+    };
+    Ok((positions, volumes))
+}

@@ -1,0 +1,175 @@
+//! Writes a run into a Zarr v3 store, frame by frame, so a stopped or killed run keeps every
+//! frame written before it.
+
+use crate::IoError;
+use mpm_core::output::{FRAME_DIAGNOSTICS, Frame, Metrics, OutputError, OutputSink, RunInfo};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use zarrs::array::codec::ZstdCodec;
+use zarrs::array::{Array, ArrayBuilder, data_type};
+use zarrs::filesystem::FilesystemStore;
+use zarrs::group::{Group, GroupBuilder};
+
+/// Frames per chunk of the 1D per-frame arrays (`time`, `diagnostics/*`).
+const SCALAR_CHUNK: u64 = 256;
+
+/// An [`OutputSink`] writing a Zarr v3 store.
+pub struct ZarrSink {
+    path: PathBuf,
+    store: Option<Arc<FilesystemStore>>,
+    root: Option<Group<FilesystemStore>>,
+    time: Option<Array<FilesystemStore>>,
+    diagnostics: Vec<Array<FilesystemStore>>,
+    fields: Vec<(Array<FilesystemStore>, Vec<u64>)>,
+    frames: u64,
+}
+
+fn zerr(path: &Path, e: impl std::fmt::Display) -> IoError {
+    IoError::Zarr {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+fn out(e: IoError) -> OutputError {
+    OutputError(e.to_string())
+}
+
+impl ZarrSink {
+    /// A sink that will create the store at `path` (an existing store there is replaced).
+    pub fn new(path: impl Into<PathBuf>) -> Self {
+        Self {
+            path: path.into(),
+            store: None,
+            root: None,
+            time: None,
+            diagnostics: Vec::new(),
+            fields: Vec::new(),
+            frames: 0,
+        }
+    }
+
+    /// Where the store is.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn create(&mut self, info: &RunInfo<'_>) -> Result<(), IoError> {
+        zarrs::config::global_config_mut().set_include_zarrs_metadata(false);
+        let path = self.path.clone();
+        if path.exists() {
+            std::fs::remove_dir_all(&path).map_err(|source| IoError::File {
+                path: path.display().to_string(),
+                source,
+            })?;
+        }
+        std::fs::create_dir_all(&path).map_err(|source| IoError::File {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let store = Arc::new(FilesystemStore::new(&path).map_err(|e| zerr(&path, e))?);
+        let mut attrs = serde_json::Map::new();
+        attrs.insert("scene".into(), info.scene.clone());
+        attrs.insert("mpm_version".into(), mpm_core::VERSION.into());
+        attrs.insert("dimension".into(), info.dimension.into());
+        attrs.insert("particles".into(), info.particles.into());
+        attrs.insert("metrics".into(), serde_json::Value::Null);
+        let root = GroupBuilder::new()
+            .attributes(attrs)
+            .build(store.clone(), "/")
+            .map_err(|e| zerr(&path, e))?;
+        root.store_metadata().map_err(|e| zerr(&path, e))?;
+        for group in ["/particles", "/diagnostics"] {
+            GroupBuilder::new()
+                .build(store.clone(), group)
+                .map_err(|e| zerr(&path, e))?
+                .store_metadata()
+                .map_err(|e| zerr(&path, e))?;
+        }
+        let scalar = |name: &str| -> Result<Array<FilesystemStore>, IoError> {
+            let array = ArrayBuilder::new(vec![0u64], vec![SCALAR_CHUNK], data_type::float64(), f64::NAN)
+                .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
+                .dimension_names(Some(["frame"]))
+                .build(store.clone(), name)
+                .map_err(|e| zerr(&path, e))?;
+            array.store_metadata().map_err(|e| zerr(&path, e))?;
+            Ok(array)
+        };
+        self.time = Some(scalar("/time")?);
+        self.diagnostics = FRAME_DIAGNOSTICS
+            .iter()
+            .map(|name| scalar(&format!("/diagnostics/{name}")))
+            .collect::<Result<_, _>>()?;
+        let n = info.particles as u64;
+        for field in info.fields {
+            let mut shape = vec![0u64, n];
+            shape.extend(field.shape.iter().map(|&s| s as u64));
+            let mut chunk = shape.clone();
+            chunk[0] = 1;
+            let mut dims = vec!["frame".to_string(), "particle".to_string()];
+            let component_names = ["component", "column"];
+            for k in 0..field.shape.len() {
+                dims.push(component_names.get(k).unwrap_or(&"extra").to_string());
+            }
+            let array = ArrayBuilder::new(shape.clone(), chunk, data_type::float64(), f64::NAN)
+                .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
+                .dimension_names(Some(dims))
+                .build(store.clone(), &format!("/particles/{}", field.name))
+                .map_err(|e| zerr(&path, e))?;
+            array.store_metadata().map_err(|e| zerr(&path, e))?;
+            self.fields.push((array, shape));
+        }
+        self.root = Some(root);
+        self.store = Some(store);
+        Ok(())
+    }
+
+    fn append(&mut self, frame: &Frame<'_>) -> Result<(), IoError> {
+        let path = self.path.clone();
+        let k = self.frames;
+        for (i, (array, shape)) in self.fields.iter_mut().enumerate() {
+            shape[0] = k + 1;
+            array.set_shape(shape.clone()).map_err(|e| zerr(&path, e))?;
+            let mut chunk = vec![0u64; shape.len()];
+            chunk[0] = k;
+            array
+                .store_chunk(&chunk, frame.values[i].as_slice())
+                .map_err(|e| zerr(&path, e))?;
+            array.store_metadata().map_err(|e| zerr(&path, e))?;
+        }
+        let scalars = std::iter::once((self.time.as_mut().expect("begun"), frame.time)).chain(
+            self.diagnostics
+                .iter_mut()
+                .zip(frame.diagnostics.iter().copied()),
+        );
+        for (array, value) in scalars {
+            array.set_shape(vec![k + 1]).map_err(|e| zerr(&path, e))?;
+            array
+                .store_array_subset(&[k..k + 1], &[value])
+                .map_err(|e| zerr(&path, e))?;
+            array.store_metadata().map_err(|e| zerr(&path, e))?;
+        }
+        self.frames += 1;
+        Ok(())
+    }
+}
+
+impl OutputSink for ZarrSink {
+    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
+        self.create(info).map_err(out)
+    }
+
+    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
+        self.append(frame).map_err(out)
+    }
+
+    fn finish(&mut self, metrics: &Metrics) -> Result<(), OutputError> {
+        let path = self.path.clone();
+        let Some(root) = self.root.as_mut() else {
+            return Ok(());
+        };
+        let value = serde_json::to_value(metrics).map_err(|e| OutputError(e.to_string()))?;
+        root.attributes_mut().insert("metrics".into(), value);
+        root.store_metadata().map_err(|e| out(zerr(&path, e)))
+    }
+}
