@@ -93,6 +93,7 @@ impl From<ExitStatus> for std::process::ExitCode {
 }
 
 /// A scene file that failed to load: unreadable, or invalid.
+#[derive(Debug)]
 pub enum LoadError {
     /// Could not read the file.
     Io(anyhow::Error),
@@ -147,6 +148,10 @@ pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
     match cli.command {
         Command::Validate { scene, set } => match load_scene(&scene, &set, registry) {
             Ok(v) => {
+                if let Err(e) = mpm_core::solver::preflight(&v) {
+                    eprintln!("error: {}: {e}", scene.display());
+                    return Ok(ExitStatus::InvalidInput);
+                }
                 println!(
                     "{}: valid ({}D, {} particles in {} bodies, {} material(s))",
                     scene.display(),

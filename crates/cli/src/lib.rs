@@ -5,7 +5,7 @@ mod commands;
 mod overrides;
 mod progress;
 
-pub use commands::{Cli, Command, ExitStatus, load_scene, run_cli};
+pub use commands::{Cli, Command, ExitStatus, LoadError, load_scene, run_cli};
 pub use overrides::apply_override;
 
 use mpm_core::plugin::Registry;

@@ -30,6 +30,7 @@ pub const FRAME_DIAGNOSTICS: &[&str] = &[
     "total_energy",
     "max_speed",
     "min_det_f",
+    "momentum",
 ];
 
 /// Static facts about a run, given to the writer before the first frame.
@@ -154,6 +155,8 @@ pub struct Metrics {
     pub min_det_f: f64,
     /// Largest particle speed seen, m/s.
     pub max_speed: f64,
+    /// Largest magnitude of the total particle momentum seen (after any step).
+    pub max_momentum: f64,
     /// Output frames written.
     pub frames: usize,
     /// Worker threads used.

@@ -69,6 +69,15 @@ impl ResultStore {
             .map_err(|e| zerr(&self.path, e))
     }
 
+    /// A per-frame diagnostic (`kinetic_energy`, `strain_energy`, `total_energy`, ...).
+    pub fn diagnostic(&self, name: &str) -> Result<Vec<f64>, IoError> {
+        let array = Array::open(self.store.clone(), &format!("/diagnostics/{name}"))
+            .map_err(|e| zerr(&self.path, e))?;
+        array
+            .retrieve_array_subset::<Vec<f64>>(&array.subset_all())
+            .map_err(|e| zerr(&self.path, e))
+    }
+
     /// Names of the stored particle fields.
     pub fn fields(&self) -> Result<Vec<String>, IoError> {
         let dir = self.path.join("particles");

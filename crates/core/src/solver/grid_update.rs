@@ -1,4 +1,7 @@
-//! Grid update: momentum to velocity, forces, gravity, damping and boundary conditions.
+//! Grid update: momentum to velocity, FLIP forces, damping and boundary conditions.
+//!
+//! Gravity arrives with the momentum (or the FLIP force) from P2G, so stick walls fold it
+//! like any other force.
 
 use super::parallel::SharedSlice;
 use crate::boundary::Boundaries;
@@ -15,7 +18,6 @@ pub(crate) struct GridParams<const D: usize> {
     pub forces: bool,
     /// Forces are in `grid.force` (FLIP) and the pre-force velocity is kept.
     pub flip: bool,
-    pub gravity: Vector<D>,
     pub damping: f64,
     /// Time at the end of the step (obstacles move).
     pub time: f64,
@@ -64,7 +66,6 @@ pub(crate) fn update_grid<const D: usize>(
                     if params.flip {
                         *v += force[i] * (params.dt / m);
                     }
-                    *v += params.gravity * params.dt;
                     *v *= damping;
                 }
                 if !boundaries.is_empty() {

@@ -196,6 +196,22 @@ pub fn run_scene(
     dispatch(scene, Run { sink, observer })
 }
 
+/// Checks what only the built simulation can tell (the fixed time step against the stable
+/// one), without running a step. `mpm validate` and job submission call it.
+pub fn preflight(scene: &ValidatedScene) -> Result<(), RunError> {
+    struct Check;
+    impl SimulationVisitor for Check {
+        type Output = Result<(), RunError>;
+        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
+        where
+            dyn Material: DimensionDispatch<D>,
+        {
+            sim.preflight()
+        }
+    }
+    dispatch(scene, Check)
+}
+
 /// Particle storage a scene allocates, bytes per particle, without running it.
 pub fn bytes_per_particle(scene: &ValidatedScene) -> f64 {
     struct Bytes;
@@ -395,6 +411,7 @@ where
             force_apart: self.settings.transfer == Transfer::Flip,
             affine: self.settings.transfer == Transfer::Apic,
             inertia: self.inertia(),
+            gravity: self.settings.gravity,
         };
         particle_to_grid::<D, K>(&mut self.grid, &self.particles, &self.bins, params);
     }
@@ -404,7 +421,6 @@ where
             dt,
             forces,
             flip: forces && self.settings.transfer == Transfer::Flip,
-            gravity: self.settings.gravity,
             damping: self.settings.damping,
             time: self.time + dt,
         };
@@ -557,6 +573,7 @@ where
             k.kinetic_energy + strain + k.gravity_energy,
             k.max_speed,
             k.min_det_f,
+            k.momentum.norm(),
         ];
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {
@@ -567,12 +584,8 @@ where
         })
     }
 
-    /// Runs to the end time, writing frames to `sink` and reporting to `observer`.
-    pub fn run(
-        &mut self,
-        sink: &mut dyn OutputSink,
-        observer: &mut dyn RunObserver,
-    ) -> Result<Metrics, RunError> {
+    /// Computes the initial stress and refuses a fixed time step above the stable one.
+    pub fn preflight(&mut self) -> Result<(), RunError> {
         self.initialise();
         let stable = self.stable_dt();
         if let Some(dt) = self.settings.fixed_dt
@@ -588,6 +601,16 @@ where
                 ),
             });
         }
+        Ok(())
+    }
+
+    /// Runs to the end time, writing frames to `sink` and reporting to `observer`.
+    pub fn run(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        observer: &mut dyn RunObserver,
+    ) -> Result<Metrics, RunError> {
+        self.preflight()?;
         let n = self.particles.len();
         sink.begin(&RunInfo {
             name: &self.name,
@@ -612,6 +635,7 @@ where
         let mut max_drift = 0.0f64;
         let mut min_det = self.kinematics.min_det_f;
         let mut max_speed = self.kinematics.max_speed;
+        let mut max_momentum = self.kinematics.momentum.norm();
         let mut outcome = Outcome::Finished;
         let mut diagnostic = None;
         let eps = 1e-9 * frame_dt;
@@ -671,6 +695,7 @@ where
             }
             min_det = min_det.min(k.min_det_f);
             max_speed = max_speed.max(k.max_speed);
+            max_momentum = max_momentum.max(k.momentum.norm());
             if let Some(d) = self.check(if drift.is_nan() { f64::INFINITY } else { drift }) {
                 outcome = Outcome::Stopped;
                 diagnostic = Some(d);
@@ -718,6 +743,7 @@ where
             measured_value: self.reference.as_ref().and_then(|r| r.measured()),
             min_det_f: min_det,
             max_speed,
+            max_momentum,
             frames: frame,
             threads: rayon::current_num_threads(),
             diagnostic,

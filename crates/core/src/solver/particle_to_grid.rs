@@ -10,7 +10,7 @@ use super::parallel::SharedSlice;
 use super::stencil::Stencil;
 use crate::grid::Grid;
 use crate::kernels::Kernel;
-use crate::math::{Matrix, determinant};
+use crate::math::{Matrix, Vector, determinant};
 use crate::particles::Particles;
 use rayon::prelude::*;
 
@@ -27,7 +27,7 @@ pub(crate) enum ForceTerm {
 
 /// What one P2G pass scatters.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct P2gParams {
+pub(crate) struct P2gParams<const D: usize> {
     pub dt: f64,
     /// Scatter mass too (false for a velocity remap, where the mass is already there).
     pub mass: bool,
@@ -38,6 +38,8 @@ pub(crate) struct P2gParams {
     pub affine: bool,
     /// APIC inertia coefficient c (D = c·dx²·I) for the MLS force.
     pub inertia: f64,
+    /// Gravity, scattered with the forces as m·g (so stick walls fold it like any force).
+    pub gravity: Vector<D>,
 }
 
 /// Scatters particle quantities onto the (cleared) grid.
@@ -45,7 +47,7 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
     grid: &mut Grid<D>,
     particles: &Particles<D>,
     bins: &SlabBins,
-    params: P2gParams,
+    params: P2gParams<D>,
 ) {
     let dx = grid.dx;
     let inv_dx = grid.inv_dx;
@@ -69,7 +71,15 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
                     };
                     let stencil = Stencil::<D>::new::<K>(grid, &x, half);
                     let m = particles.mass[p];
-                    let mv = particles.velocity[p] * m;
+                    let mut mv = particles.velocity[p] * m;
+                    let mut weight = Vector::<D>::zeros();
+                    if params.force != ForceTerm::None {
+                        if params.force_apart {
+                            weight = params.gravity * m;
+                        } else {
+                            mv += params.gravity * (m * params.dt);
+                        }
+                    }
                     // Affine momentum per cell of offset: Q·(x_i - x_p) with offsets in cells.
                     let mut q = Matrix::<D>::zeros();
                     if params.affine {
@@ -101,6 +111,9 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
                                 *mass_out.get(i) += w * m;
                             }
                             let mut add = (mv + q * dpos) * w;
+                            if params.force_apart && params.force != ForceTerm::None {
+                                *force_out.get(i) += weight * w;
+                            }
                             if params.force == ForceTerm::Standard {
                                 let f = s * grad;
                                 if params.force_apart {

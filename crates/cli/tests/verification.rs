@@ -1,0 +1,125 @@
+//! Verification against reference solutions, conservation checks and allocation checks.
+
+mod common;
+
+use common::*;
+use mpm_core::output::Outcome;
+
+/// Error of the vibrating bar at a cell size, with optional extra overrides.
+fn bar_error(cell: f64, extra: &[&str]) -> f64 {
+    let mut o = vec![format!("domain.cell_size={cell}")];
+    o.extend(extra.iter().map(|s| s.to_string()));
+    let m = run(&load(&example("vibrating-bar.json"), &o));
+    assert_eq!(m.outcome, Some(Outcome::Finished));
+    m.error.expect("the bar has a reference")
+}
+
+#[test]
+fn vibrating_bar_converges_at_second_order_with_quadratic_bsplines_and_apic() {
+    let cells = [0.1, 0.05, 0.025, 0.0125];
+    let errors: Vec<f64> = cells.iter().map(|&h| bar_error(h, &[])).collect();
+    let orders: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
+    println!("errors {errors:?}\norders {orders:?}");
+    for pair in errors.windows(2) {
+        assert!(pair[1] < pair[0], "refining must lower the error: {errors:?}");
+    }
+    // The issue asks for at least 1.5; measured 2.0 on every refinement.
+    for order in &orders {
+        assert!(*order >= 1.5, "observed order {order} < 1.5 ({errors:?})");
+    }
+    assert!(errors[3] < 5e-4, "finest error {}", errors[3]);
+}
+
+#[test]
+fn every_kernel_transfer_and_scheme_reproduces_the_bar() {
+    // Bounds from measurements at cell 0.05 (see the issue note): PIC is dissipative by
+    // design; USF carries a first-order time error from its stale velocity.
+    for kernel in ["linear", "gimp", "bspline2", "bspline3"] {
+        for transfer in ["pic", "flip", "apic"] {
+            for scheme in ["usf", "usl", "musl"] {
+                let sets = [
+                    format!("solver.kernel={kernel}"),
+                    format!("solver.transfer={transfer}"),
+                    format!("solver.scheme={scheme}"),
+                ];
+                let m = run(&load(&example("vibrating-bar.json"), &sets));
+                let error = m.error.unwrap();
+                let bound = match (transfer, scheme) {
+                    ("pic", _) => 0.25,
+                    (_, "usf") => 0.04,
+                    _ => 0.01,
+                };
+                assert_eq!(m.outcome, Some(Outcome::Finished), "{sets:?}");
+                assert!(error < bound, "{sets:?}: error {error} >= {bound}");
+                assert!(m.energy_drift <= 1e-6, "{sets:?}: energy grew by {}", m.energy_drift);
+            }
+        }
+    }
+}
+
+#[test]
+fn mls_force_matches_the_standard_force() {
+    let standard = bar_error(0.05, &[]);
+    let mls = bar_error(0.05, &["solver.mls=true"]);
+    assert!((mls - standard).abs() < 0.2 * standard, "mls {mls} vs standard {standard}");
+}
+
+#[test]
+fn three_dimensional_bar_matches_the_two_dimensional_one() {
+    let mut scene = bar_json();
+    scene["dimension"] = 3.into();
+    scene["domain"]["min"] = serde_json::json!([0, 0, 0]);
+    scene["domain"]["max"] = serde_json::json!([1.5, 0.2, 0.2]);
+    scene["domain"]["cell_size"] = 0.1.into();
+    scene["domain"]["walls"][1]["sides"] = serde_json::json!(["y-", "y+", "z-", "z+"]);
+    scene["bodies"][0]["shape"]["box"] = serde_json::json!({"min": [0, 0, 0], "max": [1, 0.2, 0.2]});
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_scene(dir.path(), "bar3d.json", &scene);
+    let three = run(&load(&path, &[])).error.unwrap();
+    let two = bar_error(0.1, &[]);
+    // The strip is one-dimensional (ν = 0): both runs solve the same problem.
+    assert!((three - two).abs() < 1e-6 * two, "3D {three} vs 2D {two}");
+}
+
+#[test]
+fn two_disks_conserve_momentum_and_lose_bounded_energy() {
+    let m = run(&load_example("two-disks.json", &[]));
+    assert_eq!(m.outcome, Some(Outcome::Finished));
+    // Initial momentum is zero (equal and opposite); each disk carries m·|v| ≈ 17.8 kg·m/s,
+    // so 1e-10 is round-off.
+    assert!(m.max_momentum < 1e-10, "momentum {}", m.max_momentum);
+    // APIC dissipates some energy at this resolution (measured 14.7% at cell 0.025, 5.6% at
+    // 0.0125); it never grows.
+    assert!(m.energy_drift < 0.0, "energy grew: {}", m.energy_drift);
+    assert!(m.energy_drift > -0.20, "energy lost: {}", m.energy_drift);
+}
+
+#[test]
+fn clamped_cantilever_matches_beam_theory_under_a_small_load() {
+    // Small load: the elastica reduces to δ = wL⁴/(8EI); this checks the stick wall (a
+    // true clamp) and gravity. Measured 0.71% at 4 cells through the thickness.
+    let m = run(&load_example(
+        "cantilever.json",
+        &["solver.gravity=[0,-0.1]", "reference.gravity=0.1"],
+    ));
+    let error = m.error.unwrap();
+    println!("tip deflection {:?} vs {:?}", m.measured_value, m.reference_value);
+    assert!(error < 0.02, "tip deflection error {error}");
+}
+
+#[test]
+fn scenes_allocate_only_what_they_need() {
+    let pic = mpm_core::solver::bytes_per_particle(&load_example(
+        "vibrating-bar.json",
+        &["solver.transfer=pic", "reference=null"],
+    ));
+    let apic = mpm_core::solver::bytes_per_particle(&load_example("vibrating-bar.json", &["reference=null"]));
+    // 2D: position, velocity (2×8 each), mass, volume (8 each), F, stress (4×8 each), id (4).
+    let base = 2.0 * 16.0 + 2.0 * 8.0 + 2.0 * 32.0 + 4.0;
+    assert_eq!(pic, base, "PIC allocates exactly the core fields");
+    // APIC adds the affine matrix and nothing else: no plugin fields for elastic materials.
+    assert_eq!(apic, base + 32.0);
+    // A reference needing initial positions adds them.
+    let with_reference = mpm_core::solver::bytes_per_particle(&load_example("vibrating-bar.json", &[]));
+    assert_eq!(with_reference, base + 32.0 + 16.0);
+}
