@@ -110,12 +110,8 @@ pub fn load_scene(
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read scene file `{}`", path.display()))
         .map_err(LoadError::Io)?;
-    let mut value: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-        LoadError::Invalid(SceneError::single(
-            "$",
-            format!("not valid JSON: {e}"),
-        ))
-    })?;
+    let mut value: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| LoadError::Invalid(SceneError::single("$", format!("not valid JSON: {e}"))))?;
     for o in overrides {
         apply_override(&mut value, o)
             .map_err(|e| LoadError::Invalid(SceneError::single("--set", format!("{e:#}"))))?;
@@ -204,7 +200,10 @@ pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
             Ok(ExitStatus::Success)
         }
         Command::Schema => {
-            println!("{}", serde_json::to_string_pretty(&crate::scene_schema(registry))?);
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&crate::scene_schema(registry))?
+            );
             Ok(ExitStatus::Success)
         }
         Command::Plugins { schemas } => {
@@ -224,24 +223,54 @@ pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
 
 fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) {
     let s = &v.scene;
-    println!("scene          {} ({}D, {:?} kernel, {:?}{}, {:?})", s.name, s.dimension, s.solver.kernel, s.solver.transfer, if s.solver.mls { " + MLS" } else { "" }, s.solver.scheme);
+    println!(
+        "scene          {} ({}D, {:?} kernel, {:?}{}, {:?})",
+        s.name,
+        s.dimension,
+        s.solver.kernel,
+        s.solver.transfer,
+        if s.solver.mls { " + MLS" } else { "" },
+        s.solver.scheme
+    );
     println!("outcome        {:?}", m.outcome.unwrap_or(Outcome::Stopped));
     if let Some(d) = &m.diagnostic {
-        let particle = d.particle.map(|p| format!(", particle {p}")).unwrap_or_default();
+        let particle = d
+            .particle
+            .map(|p| format!(", particle {p}"))
+            .unwrap_or_default();
         println!(
             "diagnostic     step {}, t = {:.6e} s{particle}, {} = {:.6e}: {}",
             d.step, d.time, d.field, d.value, d.message
         );
     }
     println!("particles      {}", m.particles);
-    println!("steps          {} to t = {:.6e} s", m.steps, m.simulated_time);
-    println!("wall time      {:.3} s on {} threads", m.wall_seconds, m.threads);
-    println!("speed          {:.3e} particle-steps/s", m.particle_steps_per_second);
-    println!("memory         {:.0} bytes/particle, grid {:.1} MB", m.bytes_per_particle, m.grid_bytes as f64 / 1e6);
-    println!("energy drift   {:+.3e} (max |drift| {:.3e})", m.energy_drift, m.max_energy_drift);
+    println!(
+        "steps          {} to t = {:.6e} s",
+        m.steps, m.simulated_time
+    );
+    println!(
+        "wall time      {:.3} s on {} threads",
+        m.wall_seconds, m.threads
+    );
+    println!(
+        "speed          {:.3e} particle-steps/s",
+        m.particle_steps_per_second
+    );
+    println!(
+        "memory         {:.0} bytes/particle, grid {:.1} MB",
+        m.bytes_per_particle,
+        m.grid_bytes as f64 / 1e6
+    );
+    println!(
+        "energy drift   {:+.3e} (max |drift| {:.3e})",
+        m.energy_drift, m.max_energy_drift
+    );
     println!("min det F      {:.6}", m.min_det_f);
     if let Some(e) = m.error {
-        println!("error          {e:.4e}  ({})", m.error_kind.as_deref().unwrap_or(""));
+        println!(
+            "error          {e:.4e}  ({})",
+            m.error_kind.as_deref().unwrap_or("")
+        );
         if let (Some(r), Some(x)) = (m.reference_value, m.measured_value) {
             println!("               reference {r:.6e}, measured {x:.6e}");
         }

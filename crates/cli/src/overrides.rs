@@ -21,7 +21,8 @@ pub fn apply_override(scene: &mut Value, assignment: &str) -> anyhow::Result<()>
                 let obj = target
                     .as_object_mut()
                     .with_context(|| format!("`{path}`: `{k}` is not inside an object"))?;
-                obj.entry(k.clone()).or_insert_with(|| Value::Object(Default::default()))
+                obj.entry(k.clone())
+                    .or_insert_with(|| Value::Object(Default::default()))
             }
             Segment::Index(i) => target
                 .as_array_mut()
@@ -62,7 +63,9 @@ fn split_path(path: &str) -> anyhow::Result<Vec<Segment>> {
         }
         rest = &rest[key_end..];
         while let Some(stripped) = rest.strip_prefix('[') {
-            let close = stripped.find(']').with_context(|| format!("`{path}`: missing ]"))?;
+            let close = stripped
+                .find(']')
+                .with_context(|| format!("`{path}`: missing ]"))?;
             let index: usize = stripped[..close]
                 .parse()
                 .with_context(|| format!("`{path}`: `{}` is not an index", &stripped[..close]))?;
@@ -82,7 +85,8 @@ mod tests {
 
     #[test]
     fn overrides_nested_values() {
-        let mut scene = serde_json::json!({"solver": {"cfl": 0.3}, "bodies": [{"particles_per_cell": 2}]});
+        let mut scene =
+            serde_json::json!({"solver": {"cfl": 0.3}, "bodies": [{"particles_per_cell": 2}]});
         apply_override(&mut scene, "solver.cfl=0.5").unwrap();
         apply_override(&mut scene, "bodies[0].particles_per_cell=3").unwrap();
         apply_override(&mut scene, "solver.kernel=linear").unwrap();

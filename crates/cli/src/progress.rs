@@ -43,9 +43,12 @@ impl RunObserver for ProgressReporter {
     fn progress(&mut self, p: &Progress) -> Control {
         let fraction = (p.time / p.end_time).clamp(0.0, 1.0);
         if let Some(bar) = &self.bar {
-            if p.step % 16 == 0 || fraction >= 1.0 {
+            if p.step.is_multiple_of(16) || fraction >= 1.0 {
                 bar.set_position((fraction * 1000.0) as u64);
-                bar.set_message(format!("t = {:.4e} s, step {}, dt = {:.2e} s", p.time, p.step, p.dt));
+                bar.set_message(format!(
+                    "t = {:.4e} s, step {}, dt = {:.2e} s",
+                    p.time, p.step, p.dt
+                ));
             }
         } else if !self.quiet && fraction + 1e-12 >= self.next_line_fraction {
             eprintln!(

@@ -34,7 +34,10 @@ fn assert_rejected(scene: serde_json::Value, path: &str) {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {t}");
         assert!(t.contains(path), "{args:?}: expected `{path}` in: {t}");
     }
-    assert!(!dir.path().join("out").exists(), "nothing may be written for a bad scene");
+    assert!(
+        !dir.path().join("out").exists(),
+        "nothing may be written for a bad scene"
+    );
 }
 
 #[test]
@@ -100,7 +103,10 @@ fn invalid_scenes_are_rejected_with_json_paths() {
 fn run_writes_a_store_and_export_writes_vtk() {
     let dir = tempfile::tempdir().unwrap();
     let scene = example("vibrating-bar.json");
-    let o = mpm(&["run", scene.to_str().unwrap(), "--out", "res"], dir.path());
+    let o = mpm(
+        &["run", scene.to_str().unwrap(), "--out", "res"],
+        dir.path(),
+    );
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("outcome        Finished"), "{t}");
@@ -120,7 +126,10 @@ fn run_writes_a_store_and_export_writes_vtk() {
     assert!(metrics["error"].as_f64().unwrap() < 0.01);
     assert!(metrics["particle_steps_per_second"].as_f64().unwrap() > 0.0);
 
-    let o = mpm(&["export", "res/vibrating-bar.zarr", "--vtk", "vtk"], dir.path());
+    let o = mpm(
+        &["export", "res/vibrating-bar.zarr", "--vtk", "vtk"],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", text(&o));
     let pvd = std::fs::read_to_string(dir.path().join("vtk/vibrating-bar.pvd")).unwrap();
     assert_eq!(pvd.matches("<DataSet").count(), 41);
@@ -150,7 +159,10 @@ fn an_unstable_run_stops_with_a_diagnostic_and_keeps_its_frames() {
     );
     let t = text(&o);
     assert_eq!(o.status.code(), Some(3), "{t}");
-    assert!(t.contains("outcome        Stopped") && t.contains("diagnostic     step"), "{t}");
+    assert!(
+        t.contains("outcome        Stopped") && t.contains("diagnostic     step"),
+        "{t}"
+    );
     let store = mpm_io::ResultStore::open(dir.path().join("res/vibrating-bar.zarr")).unwrap();
     let metrics = &store.attributes()["metrics"];
     assert_eq!(metrics["outcome"], "stopped");
@@ -171,7 +183,11 @@ fn bodies_can_come_from_csv_and_from_a_result_store() {
     let mut csv = String::from("x,y\n");
     for i in 0..40 {
         for j in 0..8 {
-            csv += &format!("{},{}\n", 0.0125 + 0.025 * i as f64, 0.0125 + 0.025 * j as f64);
+            csv += &format!(
+                "{},{}\n",
+                0.0125 + 0.025 * i as f64,
+                0.0125 + 0.025 * j as f64
+            );
         }
     }
     std::fs::write(dir.path().join("bar.csv"), csv).unwrap();
@@ -184,7 +200,18 @@ fn bodies_can_come_from_csv_and_from_a_result_store() {
     assert!(m.error.unwrap() < 0.01, "{:?}", m.error);
 
     // Zarr: start a body from the last frame of a run.
-    let o = mpm(&["run", "csv.json", "--out", "res", "--set", "solver.end_time=0.01", "-q"], dir.path());
+    let o = mpm(
+        &[
+            "run",
+            "csv.json",
+            "--out",
+            "res",
+            "--set",
+            "solver.end_time=0.01",
+            "-q",
+        ],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", text(&o));
     let mut s = bar_json();
     s["bodies"][0]["shape"] = json!({"file": {"path": "res/vibrating-bar.zarr", "format": "zarr"}});
@@ -199,7 +226,11 @@ fn bodies_can_come_from_csv_and_from_a_result_store() {
     let path = write_scene(dir.path(), "badcsv.json", &s);
     let o = mpm(&["validate", path.to_str().unwrap()], dir.path());
     assert_eq!(o.status.code(), Some(2));
-    assert!(text(&o).contains("bodies[0].shape.file.path"), "{}", text(&o));
+    assert!(
+        text(&o).contains("bodies[0].shape.file.path"),
+        "{}",
+        text(&o)
+    );
 }
 
 #[test]

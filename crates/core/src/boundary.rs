@@ -51,10 +51,23 @@ pub const GRID_PADDING: usize = 2;
 /// Signed-distance description of a rigid obstacle at time 0.
 #[derive(Clone, Debug)]
 enum Solid<const D: usize> {
-    Plane { point: Vector<D>, normal: Vector<D> },
-    Box { min: Vector<D>, max: Vector<D> },
-    Sphere { center: Vector<D>, radius: f64 },
-    Cylinder { center: Vector<D>, axis: Vector<D>, radius: f64 },
+    Plane {
+        point: Vector<D>,
+        normal: Vector<D>,
+    },
+    Box {
+        min: Vector<D>,
+        max: Vector<D>,
+    },
+    Sphere {
+        center: Vector<D>,
+        radius: f64,
+    },
+    Cylinder {
+        center: Vector<D>,
+        axis: Vector<D>,
+        radius: f64,
+    },
 }
 
 impl<const D: usize> Solid<D> {
@@ -193,7 +206,11 @@ impl<const D: usize> Boundaries<D> {
                 ObstacleRule {
                     solid,
                     contact: o.condition,
-                    velocity: o.velocity.as_deref().map(vec_of).unwrap_or_else(Vector::<D>::zeros),
+                    velocity: o
+                        .velocity
+                        .as_deref()
+                        .map(vec_of)
+                        .unwrap_or_else(Vector::<D>::zeros),
                 }
             })
             .collect();
@@ -298,7 +315,12 @@ impl<const D: usize> Boundaries<D> {
 }
 
 /// Calls `f` with the coordinates of every node whose coordinate on `axis` is `plane`.
-fn for_each_node_in_plane(nodes: [usize; 3], axis: usize, plane: usize, mut f: impl FnMut([usize; 3])) {
+fn for_each_node_in_plane(
+    nodes: [usize; 3],
+    axis: usize,
+    plane: usize,
+    mut f: impl FnMut([usize; 3]),
+) {
     let mut ijk = [0usize; 3];
     ijk[axis] = plane;
     let others: Vec<usize> = (0..3).filter(|&d| d != axis).collect();

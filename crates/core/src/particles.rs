@@ -71,8 +71,7 @@ impl<const D: usize> Particles<D> {
             .flat_map(|g| g.state.iter())
             .map(|s| s.capacity() * 8)
             .sum();
-        (self.position.capacity() + self.velocity.capacity() + self.initial_position.capacity())
-            * v
+        (self.position.capacity() + self.velocity.capacity() + self.initial_position.capacity()) * v
             + (self.mass.capacity() + self.volume0.capacity() + self.half_size.capacity()) * 8
             + (self.deformation_gradient.capacity()
                 + self.stress.capacity()

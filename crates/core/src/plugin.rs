@@ -26,8 +26,11 @@ pub trait MaterialFactory: Send + Sync {
     /// JSON Schema of the whole section, `type` key included.
     fn schema(&self) -> serde_json::Value;
     /// Reads and checks the section; issues carry full JSON paths below `path`.
-    fn build(&self, section: &serde_json::Value, path: &str)
-    -> Result<Arc<dyn Material>, Vec<Issue>>;
+    fn build(
+        &self,
+        section: &serde_json::Value,
+        path: &str,
+    ) -> Result<Arc<dyn Material>, Vec<Issue>>;
 }
 
 /// Registration failures.

@@ -101,8 +101,10 @@ impl ReferenceTracker {
                 let across = if axis == 0 { 1 } else { 0 };
                 let (mut sum, mut count) = (0.0, 0usize);
                 for p in 0..particles.len() {
-                    if tip - particles.initial_position[p][axis] < 1e-9 * (tip - clamped_end).abs() {
-                        sum += particles.initial_position[p][across] - particles.position[p][across];
+                    if tip - particles.initial_position[p][axis] < 1e-9 * (tip - clamped_end).abs()
+                    {
+                        sum +=
+                            particles.initial_position[p][across] - particles.position[p][across];
                         count += 1;
                     }
                 }

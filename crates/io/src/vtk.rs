@@ -55,11 +55,15 @@ pub fn export_vtk(store_path: &Path, dir: &Path) -> Result<std::path::PathBuf, I
         for p in 0..n {
             let _ = write!(vtu, "{p} ");
         }
-        vtu.push_str("\n</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
+        vtu.push_str(
+            "\n</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n",
+        );
         for p in 0..n {
             let _ = write!(vtu, "{} ", p + 1);
         }
-        vtu.push_str("\n</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
+        vtu.push_str(
+            "\n</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n",
+        );
         for _ in 0..n {
             vtu.push_str("1 ");
         }
@@ -80,7 +84,10 @@ pub fn export_vtk(store_path: &Path, dir: &Path) -> Result<std::path::PathBuf, I
         let file = format!("{name}_{frame:05}.vtu");
         let path = dir.join(&file);
         std::fs::write(&path, vtu).map_err(|e| file_err(&path, e))?;
-        let _ = writeln!(pvd, "<DataSet timestep=\"{t}\" part=\"0\" file=\"{file}\"/>");
+        let _ = writeln!(
+            pvd,
+            "<DataSet timestep=\"{t}\" part=\"0\" file=\"{file}\"/>"
+        );
     }
     pvd.push_str("</Collection>\n</VTKFile>\n");
     let pvd_path = dir.join(format!("{name}.pvd"));

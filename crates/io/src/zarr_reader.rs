@@ -121,7 +121,11 @@ impl ResultStore {
 
 /// Reads the last frame's positions (and volumes when stored) of a result store, to start a
 /// body from it; `spacing^dim` is the volume when the store has none.
-pub fn read_particles(path: &Path, dim: usize, spacing: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
+pub fn read_particles(
+    path: &Path,
+    dim: usize,
+    spacing: f64,
+) -> Result<(Vec<f64>, Vec<f64>), String> {
     let store = ResultStore::open(path).map_err(|e| e.to_string())?;
     if store.dimension() != dim {
         return Err(format!(

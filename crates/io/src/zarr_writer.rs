@@ -6,7 +6,7 @@ use mpm_core::output::{FRAME_DIAGNOSTICS, Frame, Metrics, OutputError, OutputSin
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use zarrs::array::codec::ZstdCodec;
-use zarrs::array::{Array, ArrayBuilder, data_type};
+use zarrs::array::{Array, ArrayBuilder, ArraySubset, data_type};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::{Group, GroupBuilder};
 
@@ -87,11 +87,16 @@ impl ZarrSink {
                 .map_err(|e| zerr(&path, e))?;
         }
         let scalar = |name: &str| -> Result<Array<FilesystemStore>, IoError> {
-            let array = ArrayBuilder::new(vec![0u64], vec![SCALAR_CHUNK], data_type::float64(), f64::NAN)
-                .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
-                .dimension_names(Some(["frame"]))
-                .build(store.clone(), name)
-                .map_err(|e| zerr(&path, e))?;
+            let array = ArrayBuilder::new(
+                vec![0u64],
+                vec![SCALAR_CHUNK],
+                data_type::float64(),
+                f64::NAN,
+            )
+            .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
+            .dimension_names(Some(["frame"]))
+            .build(store.clone(), name)
+            .map_err(|e| zerr(&path, e))?;
             array.store_metadata().map_err(|e| zerr(&path, e))?;
             Ok(array)
         };
@@ -144,8 +149,10 @@ impl ZarrSink {
         );
         for (array, value) in scalars {
             array.set_shape(vec![k + 1]).map_err(|e| zerr(&path, e))?;
+            let element = ArraySubset::new_with_start_shape(vec![k], vec![1])
+                .map_err(|e| zerr(&path, e))?;
             array
-                .store_array_subset(&[k..k + 1], &[value])
+                .store_array_subset(&element, &[value])
                 .map_err(|e| zerr(&path, e))?;
             array.store_metadata().map_err(|e| zerr(&path, e))?;
         }

@@ -5,9 +5,7 @@
 //! errors and a schema), checks that name the offending field, a [`ConstitutiveLaw`] that
 //! updates a whole batch of particles per call, and a [`Plugin`] value to register.
 
-use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, Material, StressBatch, lame_parameters,
-};
+use mpm_core::material::{BatchStats, ConstitutiveLaw, Material, StressBatch, lame_parameters};
 use mpm_core::math::{Matrix, trace};
 use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory, check_elastic_constants};
 use mpm_core::scene::Issue;
@@ -67,7 +65,8 @@ impl ConstitutiveLaw for KelvinVoigt {
             *stress = identity * (self.lambda * tr)
                 + strain * (2.0 * self.mu)
                 + rate * (2.0 * self.params.viscosity);
-            energy += batch.volume0[p] * (0.5 * self.lambda * tr * tr + self.mu * strain.norm_squared());
+            energy +=
+                batch.volume0[p] * (0.5 * self.lambda * tr * tr + self.mu * strain.norm_squared());
         }
         BatchStats {
             strain_energy: energy,
@@ -79,7 +78,10 @@ impl ConstitutiveLaw for KelvinVoigt {
 fn build(p: KelvinVoigtParameters, path: &str) -> Result<Arc<dyn Material>, Vec<Issue>> {
     let mut issues = check_elastic_constants(path, p.density, p.youngs_modulus, p.poisson_ratio);
     if !(p.viscosity.is_finite() && p.viscosity >= 0.0) {
-        issues.push(Issue::new(format!("{path}.viscosity"), "must be a finite number >= 0"));
+        issues.push(Issue::new(
+            format!("{path}.viscosity"),
+            "must be a finite number >= 0",
+        ));
     }
     if issues.is_empty() {
         Ok(Arc::new(KelvinVoigt::new(p)))

@@ -30,7 +30,9 @@ fn kelvin_voigt_bar_decays_at_the_analytic_rate() {
     let beta = 0.5 * k * k / 1.0;
     let measured = -(at(0.8) / at(0.0)).ln() / (2.0 * 0.8);
     let relative = (measured - beta).abs() / beta;
-    println!("decay rate: measured {measured:.5}, analytic {beta:.5}, relative error {relative:.3e}");
+    println!(
+        "decay rate: measured {measured:.5}, analytic {beta:.5}, relative error {relative:.3e}"
+    );
     // Tolerance: the discretisation (20 cells along the bar) and the grid transfer's own
     // damping; measured 0.4% when this test was written.
     assert!(relative < 0.05, "decay rate {measured} vs {beta}");

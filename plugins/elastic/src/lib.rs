@@ -10,9 +10,7 @@ pub use linear_elastic::LinearElastic;
 pub use neo_hookean::NeoHookean;
 
 use mpm_core::material::Material;
-use mpm_core::plugin::{
-    MaterialFactory, Plugin, TypedMaterialFactory, check_elastic_constants,
-};
+use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory, check_elastic_constants};
 use mpm_core::scene::Issue;
 use schemars::JsonSchema;
 use serde::Deserialize;
@@ -35,7 +33,11 @@ impl ElasticParameters {
     pub fn check(&self, path: &str) -> Result<(), Vec<Issue>> {
         let issues =
             check_elastic_constants(path, self.density, self.youngs_modulus, self.poisson_ratio);
-        if issues.is_empty() { Ok(()) } else { Err(issues) }
+        if issues.is_empty() {
+            Ok(())
+        } else {
+            Err(issues)
+        }
     }
 
     /// P-wave speed sqrt((λ + 2μ)/ρ) in the reference state.
@@ -77,7 +79,10 @@ impl Plugin for ElasticPlugin {
         vec![
             Box::new(TypedMaterialFactory::new("linear_elastic", build_linear)),
             Box::new(TypedMaterialFactory::new("neo_hookean", build_neo_hookean)),
-            Box::new(TypedMaterialFactory::new("fixed_corotated", build_corotated)),
+            Box::new(TypedMaterialFactory::new(
+                "fixed_corotated",
+                build_corotated,
+            )),
         ]
     }
 }

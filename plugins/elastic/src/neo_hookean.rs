@@ -42,13 +42,15 @@ impl ConstitutiveLaw for NeoHookean {
             let b = f * f.transpose();
             *stress = (b - identity) * (mu / j) + identity * (lambda * log_j / j);
             let tr_c = f.norm_squared();
-            energy += v0 * (0.5 * mu * (tr_c - D as f64) - mu * log_j + 0.5 * lambda * log_j * log_j);
+            energy +=
+                v0 * (0.5 * mu * (tr_c - D as f64) - mu * log_j + 0.5 * lambda * log_j * log_j);
             min_j = min_j.min(j);
         }
         // Tangent stiffness grows under compression: (λ + 2μ − 2λ ln J) / J per unit
         // reference density; take the worst particle of the batch.
         let modulus = if min_j.is_finite() && min_j > 0.0 {
-            ((lambda + 2.0 * mu - 2.0 * lambda * min_j.ln().min(0.0)) / min_j).max(lambda + 2.0 * mu)
+            ((lambda + 2.0 * mu - 2.0 * lambda * min_j.ln().min(0.0)) / min_j)
+                .max(lambda + 2.0 * mu)
         } else {
             lambda + 2.0 * mu
         };

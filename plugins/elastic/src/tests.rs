@@ -31,7 +31,17 @@ fn stress_of<L: ConstitutiveLaw, const D: usize>(law: &L, f: Matrix<D>) -> (Matr
 #[test]
 fn all_laws_agree_with_linear_elasticity_for_small_strain() {
     let eps = 1e-7;
-    let f = Matrix::<3>::new(1.0 + eps, 0.3 * eps, 0.0, 0.3 * eps, 1.0 - 0.5 * eps, 0.0, 0.0, 0.0, 1.0);
+    let f = Matrix::<3>::new(
+        1.0 + eps,
+        0.3 * eps,
+        0.0,
+        0.3 * eps,
+        1.0 - 0.5 * eps,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    );
     let (lin, _) = stress_of(&LinearElastic::new(params()), f);
     let (nh, _) = stress_of(&NeoHookean::new(params()), f);
     let (fc, _) = stress_of(&FixedCorotated::new(params()), f);

@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 
 /// Path of a file in the repository's `examples/`.
 pub fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .join(name)
 }
 
 /// Loads a scene with `--set` style overrides.

@@ -11,7 +11,10 @@ fn n_and_dn(d: f64) -> (f64, f64) {
     let ad = d.abs();
     let s = d.signum();
     if ad < 1.0 {
-        (0.5 * ad * ad * ad - ad * ad + 2.0 / 3.0, s * (1.5 * ad * ad - 2.0 * ad))
+        (
+            0.5 * ad * ad * ad - ad * ad + 2.0 / 3.0,
+            s * (1.5 * ad * ad - 2.0 * ad),
+        )
     } else if ad < 2.0 {
         let t = 2.0 - ad;
         (t * t * t / 6.0, -s * 0.5 * t * t)

@@ -69,10 +69,16 @@ mod tests {
             let sum: f64 = aw.w[..K::SPAN].iter().sum();
             let dsum: f64 = aw.dw[..K::SPAN].iter().sum();
             // Linear reproduction: sum_i w_i x_i = x_p.
-            let first: f64 = (0..K::SPAN).map(|a| aw.w[a] * (aw.base + a as isize) as f64).sum();
+            let first: f64 = (0..K::SPAN)
+                .map(|a| aw.w[a] * (aw.base + a as isize) as f64)
+                .sum();
             assert!((sum - 1.0).abs() < 1e-12, "{} sum {sum} at {xi}", K::NAME);
             assert!(dsum.abs() < 1e-12, "{} dsum {dsum}", K::NAME);
-            assert!((first - xi).abs() < 1e-12, "{} first moment {first} at {xi}", K::NAME);
+            assert!(
+                (first - xi).abs() < 1e-12,
+                "{} first moment {first} at {xi}",
+                K::NAME
+            );
             // Derivative of the weights agrees with finite differences.
             let h = 1e-6;
             let (p, m) = (K::weights(xi + h, half_size), K::weights(xi - h, half_size));

@@ -54,7 +54,11 @@ pub fn parse_scene(
     let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
         SceneError::single(
             "$",
-            format!("not valid JSON: {e} (line {}, column {})", e.line(), e.column()),
+            format!(
+                "not valid JSON: {e} (line {}, column {})",
+                e.line(),
+                e.column()
+            ),
         )
     })?;
     parse_scene_value(value, registry, base_dir)
@@ -276,11 +280,18 @@ impl Validator {
             let known: Vec<&str> = s.materials.keys().map(String::as_str).collect();
             self.err(
                 format!("{path}.material"),
-                format!("no material named `{}` (scene has: {})", b.material, known.join(", ")),
+                format!(
+                    "no material named `{}` (scene has: {})",
+                    b.material,
+                    known.join(", ")
+                ),
             );
         }
         if !(1..=8).contains(&b.particles_per_cell) {
-            self.err(format!("{path}.particles_per_cell"), "must be between 1 and 8");
+            self.err(
+                format!("{path}.particles_per_cell"),
+                "must be between 1 and 8",
+            );
         }
         match &b.shape {
             Shape::Box { min, max } => {
@@ -383,7 +394,10 @@ impl Validator {
             } => {
                 let p = format!("{path}.shape.cylinder");
                 if self.dim != 3 {
-                    self.err(&p, "cylinders are 3D obstacles; use a sphere for a disk in 2D");
+                    self.err(
+                        &p,
+                        "cylinders are 3D obstacles; use a sphere for a disk in 2D",
+                    );
                 }
                 self.vector(&format!("{p}.center"), center);
                 self.nonzero_vector(&format!("{p}.axis"), axis);
@@ -497,7 +511,10 @@ impl Validator {
                 );
             }
             if !seen.insert(f.as_str()) {
-                self.err(format!("output.fields[{i}]"), format!("`{f}` is listed twice"));
+                self.err(
+                    format!("output.fields[{i}]"),
+                    format!("`{f}` is listed twice"),
+                );
             }
         }
     }
@@ -522,7 +539,9 @@ impl Validator {
             match &b.shape {
                 Shape::Box { min, max } => fill_box(dim, min, max, h, &mut body),
                 Shape::Sphere { center, radius } => {
-                    fill_lattice(dim, center, *radius, h, &mut body, |r| r.iter().map(|x| x * x).sum::<f64>() <= radius * radius)
+                    fill_lattice(dim, center, *radius, h, &mut body, |r| {
+                        r.iter().map(|x| x * x).sum::<f64>() <= radius * radius
+                    })
                 }
                 Shape::Cylinder {
                     center,
@@ -585,8 +604,7 @@ impl Validator {
                     format!("{path}.shape"),
                     format!(
                         "particle {p} lies at {x} on axis {a}, outside the domain [{}, {}]",
-                        s.domain.min[a],
-                        s.domain.max[a]
+                        s.domain.min[a], s.domain.max[a]
                     ),
                 );
                 continue;
@@ -619,7 +637,8 @@ fn fill_box(dim: usize, min: &[f64], max: &[f64], h: f64, body: &mut BodyParticl
             for k in 0..counts[2] {
                 let idx = [i, j, k];
                 for a in 0..dim {
-                    body.positions.push(min[a] + (idx[a] as f64 + 0.5) * step[a]);
+                    body.positions
+                        .push(min[a] + (idx[a] as f64 + 0.5) * step[a]);
                 }
                 body.volumes.push(volume);
             }
@@ -707,7 +726,10 @@ pub fn read_csv_particles(
 ) -> Result<(Vec<f64>, Vec<f64>), String> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
     let Some((_, header)) = lines.next() else {
         return Err(format!("`{}` is empty", path.display()));
     };
@@ -716,9 +738,11 @@ pub fn read_csv_particles(
     let names = ["x", "y", "z"];
     let mut idx = Vec::new();
     for name in names.iter().take(dim) {
-        idx.push(find(name).ok_or_else(|| {
-            format!("`{}`: the header has no `{name}` column", path.display())
-        })?);
+        idx.push(
+            find(name).ok_or_else(|| {
+                format!("`{}`: the header has no `{name}` column", path.display())
+            })?,
+        );
     }
     let vol_col = find("volume");
     let default_volume = spacing.powi(dim as i32);
@@ -727,15 +751,28 @@ pub fn read_csv_particles(
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         let get = |c: usize| -> Result<f64, String> {
             let s = fields.get(c).ok_or_else(|| {
-                format!("`{}` line {}: missing column {}", path.display(), line_no + 1, c + 1)
+                format!(
+                    "`{}` line {}: missing column {}",
+                    path.display(),
+                    line_no + 1,
+                    c + 1
+                )
             })?;
             let x: f64 = s.parse().map_err(|_| {
-                format!("`{}` line {}: `{s}` is not a number", path.display(), line_no + 1)
+                format!(
+                    "`{}` line {}: `{s}` is not a number",
+                    path.display(),
+                    line_no + 1
+                )
             })?;
             if x.is_finite() {
                 Ok(x)
             } else {
-                Err(format!("`{}` line {}: non-finite number", path.display(), line_no + 1))
+                Err(format!(
+                    "`{}` line {}: non-finite number",
+                    path.display(),
+                    line_no + 1
+                ))
             }
         };
         for &c in &idx {
@@ -746,7 +783,11 @@ pub fn read_csv_particles(
             None => default_volume,
         };
         if v <= 0.0 {
-            return Err(format!("`{}` line {}: volume must be > 0", path.display(), line_no + 1));
+            return Err(format!(
+                "`{}` line {}: volume must be > 0",
+                path.display(),
+                line_no + 1
+            ));
         }
         vol.push(v);
     }

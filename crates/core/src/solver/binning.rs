@@ -171,7 +171,10 @@ fn gather<T: Copy>(a: &mut [T], perm: &[u32], visited: &mut [bool]) {
 /// [`gather`] for arrays holding `comps` numbers per particle.
 fn gather_strided(a: &mut [f64], comps: usize, perm: &[u32], visited: &mut [bool]) {
     const MAX: usize = 32;
-    assert!(comps <= MAX, "state fields hold at most {MAX} numbers per particle");
+    assert!(
+        comps <= MAX,
+        "state fields hold at most {MAX} numbers per particle"
+    );
     visited.fill(false);
     let mut tmp = [0.0; MAX];
     for start in 0..perm.len() {

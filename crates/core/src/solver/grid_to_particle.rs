@@ -67,7 +67,11 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 // SAFETY: chunks are disjoint particle ranges; each particle is touched by
                 // exactly one task.
                 let (x, v, f) = unsafe { (position.get(p), velocity.get(p), deformation.get(p)) };
-                let half = if K::USES_PARTICLE_SIZE { half_size[p] } else { 0.0 };
+                let half = if K::USES_PARTICLE_SIZE {
+                    half_size[p]
+                } else {
+                    0.0
+                };
                 let stencil = Stencil::<D>::new::<K>(grid, x, half);
                 let mut v_pic = Vector::<D>::zeros();
                 let mut v_flip_change = Vector::<D>::zeros();
@@ -96,7 +100,9 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 let c = if need_b {
                     match K::APIC_INERTIA {
                         Some(coef) => b * (inv_dx / coef),
-                        None => inverse(&inertia).map_or(Matrix::<D>::zeros(), |di| b * di * inv_dx),
+                        None => {
+                            inverse(&inertia).map_or(Matrix::<D>::zeros(), |di| b * di * inv_dx)
+                        }
                     }
                 } else {
                     Matrix::<D>::zeros()
@@ -119,7 +125,11 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                     *x += v_pic * dt;
                 }
                 if params.deformation {
-                    let l = if params.gradient_from_affine { c } else { grad * inv_dx };
+                    let l = if params.gradient_from_affine {
+                        c
+                    } else {
+                        grad * inv_dx
+                    };
                     *f = (identity + l * dt) * *f;
                     if store_gradient {
                         // SAFETY: as above.
@@ -149,10 +159,16 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                         None
                     };
                     if let Some((field, value)) = bad {
-                        stats.non_finite = Some(ParticleFault { particle: p, field, value });
+                        stats.non_finite = Some(ParticleFault {
+                            particle: p,
+                            field,
+                            value,
+                        });
                     }
                 }
-                if params.position && stats.escaped.is_none() && !stencil_fits::<D, K>(grid, x, half)
+                if params.position
+                    && stats.escaped.is_none()
+                    && !stencil_fits::<D, K>(grid, x, half)
                 {
                     stats.escaped = Some(ParticleFault {
                         particle: p,
@@ -168,10 +184,17 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
 }
 
 /// Kinematic statistics of the current particle state without changing it.
-pub(crate) fn measure<const D: usize>(particles: &Particles<D>, gravity: Vector<D>) -> KinematicStats<D> {
+pub(crate) fn measure<const D: usize>(
+    particles: &Particles<D>,
+    gravity: Vector<D>,
+) -> KinematicStats<D> {
     let mut stats = KinematicStats::<D>::default();
     for p in 0..particles.len() {
-        let (m, v, x) = (particles.mass[p], particles.velocity[p], particles.position[p]);
+        let (m, v, x) = (
+            particles.mass[p],
+            particles.velocity[p],
+            particles.position[p],
+        );
         stats.kinetic_energy += 0.5 * m * v.norm_squared();
         stats.momentum += v * m;
         stats.gravity_energy -= m * gravity.dot(&x);

@@ -20,7 +20,7 @@ use crate::kernels::{CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp
 use crate::material::{BatchStats, FieldInit, Material, StressBatch};
 use crate::math::{Matrix, Vector, determinant, vector_from_slice};
 use crate::output::{
-    Diagnostic, FRAME_DIAGNOSTICS, FieldInfo, Frame, Metrics, OutputError, OutputSink, Outcome,
+    Diagnostic, FRAME_DIAGNOSTICS, FieldInfo, Frame, Metrics, Outcome, OutputError, OutputSink,
     RunInfo,
 };
 use crate::particles::{MaterialGroup, Particles};
@@ -262,7 +262,9 @@ where
             velocity_gradient: vec![Matrix::<D>::zeros(); alloc_if(needs_gradient)],
             half_size: Vec::with_capacity(alloc_if(K::USES_PARTICLE_SIZE)),
             initial_position: Vec::with_capacity(alloc_if(
-                reference.as_ref().is_some_and(|r| r.needs_initial_positions()),
+                reference
+                    .as_ref()
+                    .is_some_and(|r| r.needs_initial_positions()),
             )),
             id: Vec::with_capacity(n),
             groups: Vec::new(),
@@ -292,7 +294,9 @@ where
             for p in 0..count {
                 let x: Vector<D> = vector_from_slice(&body.positions[p * D..]);
                 particles.position.push(x);
-                particles.velocity.push(vector_from_slice(&body.velocities[p * D..]));
+                particles
+                    .velocity
+                    .push(vector_from_slice(&body.velocities[p * D..]));
                 particles.volume0.push(body.volumes[p]);
                 particles.mass.push(body.volumes[p] * material.density());
                 particles.id.push((output_index[body.body] + p) as u32);
@@ -326,7 +330,10 @@ where
         }
 
         let fields = output_fields::<D>(&s.output.fields, &particles);
-        let staging = fields.iter().map(|f| vec![0.0; f.components() * n]).collect();
+        let staging = fields
+            .iter()
+            .map(|f| vec![0.0; f.components() * n])
+            .collect();
         let settings = Settings {
             transfer: s.solver.transfer,
             flip_blend: s.solver.flip_blend,
@@ -387,7 +394,9 @@ where
 
     /// Kinetic + strain + gravitational energy after the last step.
     pub fn total_energy(&self) -> f64 {
-        self.kinematics.kinetic_energy + self.stresses.batch.strain_energy + self.kinematics.gravity_energy
+        self.kinematics.kinetic_energy
+            + self.stresses.batch.strain_energy
+            + self.kinematics.gravity_energy
     }
 
     /// The largest stable step for the current state (Courant number 1).
@@ -445,7 +454,8 @@ where
             // A pass that did not change velocities still reports F and position checks.
             self.kinematics.min_det_f = stats.min_det_f;
             self.kinematics.min_det_particle = stats.min_det_particle;
-            self.kinematics.non_finite = ParticleFault::first(self.kinematics.non_finite, stats.non_finite);
+            self.kinematics.non_finite =
+                ParticleFault::first(self.kinematics.non_finite, stats.non_finite);
             self.kinematics.escaped = ParticleFault::first(self.kinematics.escaped, stats.escaped);
             self.kinematics.gravity_energy = stats.gravity_energy;
         }
@@ -454,7 +464,7 @@ where
     /// Advances one step of size `dt` with the scene's update scheme.
     pub fn step(&mut self, dt: f64) {
         let sort = self.settings.sort_interval;
-        if sort > 0 && self.steps % sort as u64 == 0 {
+        if sort > 0 && self.steps.is_multiple_of(sort as u64) {
             self.reorder.apply(&self.grid, &mut self.particles);
         }
         self.bins.rebuild::<D, K>(&self.grid, &self.particles);
@@ -527,10 +537,16 @@ where
                 field: "det_f",
                 value: self.kinematics.min_det_f,
             };
-            return Some(make(f, "det F <= 0: a particle was inverted (time step too large or the mesh is tangled)"));
+            return Some(make(
+                f,
+                "det F <= 0: a particle was inverted (time step too large or the mesh is tangled)",
+            ));
         }
         if let Some(f) = self.kinematics.escaped {
-            return Some(make(f, "a particle left the grid (add walls or enlarge the domain)"));
+            return Some(make(
+                f,
+                "a particle left the grid (add walls or enlarge the domain)",
+            ));
         }
         if let Some(limit) = self.settings.max_speed
             && self.kinematics.max_speed > limit
@@ -560,7 +576,12 @@ where
         None
     }
 
-    fn write_frame(&mut self, sink: &mut dyn OutputSink, index: usize, dt: f64) -> Result<(), OutputError> {
+    fn write_frame(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        index: usize,
+        dt: f64,
+    ) -> Result<(), OutputError> {
         fill_staging(&self.particles, &self.fields, &mut self.staging);
         let k = &self.kinematics;
         let strain = self.stresses.batch.strain_energy;
@@ -671,7 +692,10 @@ where
                     particle: None,
                     field: "dt".into(),
                     value: dt,
-                    message: format!("the time step fell below stop.min_dt = {:e} s", self.settings.min_dt),
+                    message: format!(
+                        "the time step fell below stop.min_dt = {:e} s",
+                        self.settings.min_dt
+                    ),
                 });
                 break;
             }
@@ -786,7 +810,11 @@ fn fill_staging<const D: usize>(p: &Particles<D>, fields: &[FieldInfo], staging:
         let c = field.components();
         match field.name.as_str() {
             "x" | "v" => {
-                let src = if field.name == "x" { &p.position } else { &p.velocity };
+                let src = if field.name == "x" {
+                    &p.position
+                } else {
+                    &p.velocity
+                };
                 for (i, v) in src.iter().enumerate() {
                     let o = p.id[i] as usize * c;
                     out[o..o + D].copy_from_slice(v.as_slice());
@@ -811,7 +839,11 @@ fn fill_staging<const D: usize>(p: &Particles<D>, fields: &[FieldInfo], staging:
             "J" | "volume" => {
                 for (i, f) in p.deformation_gradient.iter().enumerate() {
                     let j = determinant(f);
-                    out[p.id[i] as usize] = if field.name == "J" { j } else { j * p.volume0[i] };
+                    out[p.id[i] as usize] = if field.name == "J" {
+                        j
+                    } else {
+                        j * p.volume0[i]
+                    };
                 }
             }
             "mass" => {
@@ -833,7 +865,9 @@ fn fill_staging<const D: usize>(p: &Particles<D>, fields: &[FieldInfo], staging:
                     for (k, i) in group.range.clone().enumerate() {
                         let o = p.id[i] as usize * c;
                         match position {
-                            Some(f) => out[o..o + c].copy_from_slice(&group.state[f][k * c..(k + 1) * c]),
+                            Some(f) => {
+                                out[o..o + c].copy_from_slice(&group.state[f][k * c..(k + 1) * c])
+                            }
                             None => out[o..o + c].fill(0.0),
                         }
                     }

@@ -14,7 +14,11 @@ pub(crate) struct Stencil<const D: usize> {
 
 /// Whether a particle's stencil lies on the grid.
 #[inline(always)]
-pub(crate) fn stencil_fits<const D: usize, K: Kernel>(grid: &Grid<D>, x: &Vector<D>, half: f64) -> bool {
+pub(crate) fn stencil_fits<const D: usize, K: Kernel>(
+    grid: &Grid<D>,
+    x: &Vector<D>,
+    half: f64,
+) -> bool {
     for d in 0..D {
         let xi = (x[d] - grid.origin[d]) * grid.inv_dx;
         if !xi.is_finite() {
