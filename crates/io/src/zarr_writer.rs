@@ -149,8 +149,8 @@ impl ZarrSink {
         );
         for (array, value) in scalars {
             array.set_shape(vec![k + 1]).map_err(|e| zerr(&path, e))?;
-            let element = ArraySubset::new_with_start_shape(vec![k], vec![1])
-                .map_err(|e| zerr(&path, e))?;
+            let element =
+                ArraySubset::new_with_start_shape(vec![k], vec![1]).map_err(|e| zerr(&path, e))?;
             array
                 .store_array_subset(&element, &[value])
                 .map_err(|e| zerr(&path, e))?;
