@@ -1,6 +1,6 @@
 //! Cubic B-spline shape functions: C2, four nodes per axis.
 
-use super::{AxisWeights, Kernel};
+use super::{AxisWeights, Kernel, fast_floor};
 
 /// Cubic B-spline over four nodes per axis.
 #[derive(Clone, Copy, Debug, Default)]
@@ -30,7 +30,7 @@ impl Kernel for CubicBSpline {
 
     #[inline(always)]
     fn weights(xi: f64, _half_size: f64) -> AxisWeights {
-        let base = xi.floor() - 1.0;
+        let base = fast_floor(xi) - 1.0;
         let mut out = AxisWeights {
             base: base as isize,
             ..Default::default()

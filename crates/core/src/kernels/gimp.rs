@@ -1,7 +1,7 @@
 //! Uniform GIMP (uGIMP): the linear kernel convolved with the particle's undeformed box,
 //! which removes the cell-crossing noise of plain linear MPM.
 
-use super::{AxisWeights, Kernel};
+use super::{AxisWeights, Kernel, fast_floor};
 
 /// uGIMP over three nodes per axis; needs each particle's half width (at most half a cell).
 #[derive(Clone, Copy, Debug, Default)]
@@ -33,7 +33,7 @@ impl Kernel for UniformGimp {
 
     #[inline(always)]
     fn weights(xi: f64, half_size: f64) -> AxisWeights {
-        let base = (xi - half_size).floor();
+        let base = fast_floor(xi - half_size);
         let mut out = AxisWeights {
             base: base as isize,
             ..Default::default()

@@ -1,6 +1,6 @@
 //! Linear (tent) shape functions: the original MPM kernel, C0 across cell faces.
 
-use super::{AxisWeights, Kernel};
+use super::{AxisWeights, Kernel, fast_floor};
 
 /// Tent functions over two nodes per axis.
 #[derive(Clone, Copy, Debug, Default)]
@@ -13,7 +13,7 @@ impl Kernel for Linear {
 
     #[inline(always)]
     fn weights(xi: f64, _half_size: f64) -> AxisWeights {
-        let base = xi.floor();
+        let base = fast_floor(xi);
         let fx = xi - base;
         AxisWeights {
             base: base as isize,

@@ -1,6 +1,6 @@
 //! Quadratic B-spline shape functions: C1, three nodes per axis, the usual APIC/MLS choice.
 
-use super::{AxisWeights, Kernel};
+use super::{AxisWeights, Kernel, fast_floor};
 
 /// Quadratic B-spline over three nodes per axis.
 #[derive(Clone, Copy, Debug, Default)]
@@ -13,7 +13,7 @@ impl Kernel for QuadraticBSpline {
 
     #[inline(always)]
     fn weights(xi: f64, _half_size: f64) -> AxisWeights {
-        let base = (xi - 0.5).floor();
+        let base = fast_floor(xi - 0.5);
         // Distance from the first node, in [0.5, 1.5).
         let fx = xi - base;
         let a = 1.5 - fx;
