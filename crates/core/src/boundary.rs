@@ -225,9 +225,11 @@ impl<const D: usize> Boundaries<D> {
         self.walls.is_empty() && self.obstacles.is_empty()
     }
 
-    /// Constrains the velocity `v` of node `ijk` at position `x` at time `t`.
+    /// Constrains the velocity `v` of node `ijk` (mass `m`) at position `x` at time `t`.
+    /// Returns the work the surfaces did on the node, m Δv · v_surface: zero for fixed walls
+    /// (what they take away is the method's impact loss, not work done from outside).
     #[inline]
-    pub fn apply(&self, ijk: [usize; 3], x: &Vector<D>, t: f64, v: &mut Vector<D>) {
+    pub fn apply(&self, ijk: [usize; 3], x: &Vector<D>, t: f64, m: f64, v: &mut Vector<D>) -> f64 {
         for wall in &self.walls {
             let i = ijk[wall.axis];
             let inside = if wall.upper {
@@ -241,16 +243,20 @@ impl<const D: usize> Boundaries<D> {
                 apply_contact(v, &n, wall.contact);
             }
         }
+        let mut work = 0.0;
         for obstacle in &self.obstacles {
             // The obstacle has moved by velocity·t: evaluate at the point relative to it.
             let local = x - obstacle.velocity * t;
             let (phi, n) = obstacle.solid.distance_and_normal(&local);
             if phi <= 0.0 {
+                let before = *v;
                 let mut rel = *v - obstacle.velocity;
                 apply_contact(&mut rel, &n, obstacle.contact);
                 *v = rel + obstacle.velocity;
+                work += m * (*v - before).dot(&obstacle.velocity);
             }
         }
+        work
     }
 }
 
@@ -286,6 +292,9 @@ impl<const D: usize> Boundaries<D> {
                 ijk_front[a] = front;
                 let (g, f) = (grid.index(ijk_ghost), grid.index(ijk_front));
                 grid.mass[f] += grid.mass[g];
+                // The ghost is no degree of freedom any more: its velocity is set by the
+                // mirror after the update.
+                grid.mass[g] = 0.0;
                 let p = grid.momentum[g];
                 grid.momentum[f] -= p;
                 if flip {

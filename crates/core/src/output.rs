@@ -31,6 +31,7 @@ pub const FRAME_DIAGNOSTICS: &[&str] = &[
     "max_speed",
     "min_det_f",
     "momentum",
+    "boundary_work",
 ];
 
 /// Static facts about a run, given to the writer before the first frame.
@@ -139,8 +140,13 @@ pub struct Metrics {
     pub bytes_per_particle: f64,
     /// Grid storage, bytes.
     pub grid_bytes: usize,
-    /// Final total energy change relative to the largest mechanical energy seen.
+    /// Final change of the total energy net of `boundary_work`, relative to the largest
+    /// mechanical (kinetic + strain) energy seen; negative: dissipated (by the method,
+    /// impacts, friction or damping).
     pub energy_drift: f64,
+    /// Work done on the body by moving obstacles (J; J/m in 2D); fixed walls and damping
+    /// do none (what they take away is dissipation).
+    pub boundary_work: f64,
     /// Largest |energy drift| over the run.
     pub max_energy_drift: f64,
     /// Error against the scene's reference, when it has one.

@@ -24,11 +24,13 @@ pub(crate) struct GridParams<const D: usize> {
 }
 
 /// Turns nodal momentum into velocity in place and applies forces and boundary conditions.
+/// Returns the work moving obstacles did on the grid, for the energy balance (damping and
+/// fixed walls only dissipate; that shows as a fall of the total energy).
 pub(crate) fn update_grid<const D: usize>(
     grid: &mut Grid<D>,
     boundaries: &Boundaries<D>,
     params: GridParams<D>,
-) {
+) -> f64 {
     const CHUNK: usize = 4096;
     boundaries.fold_stick_walls(grid);
     let damping = (-params.damping * params.dt).exp();
@@ -45,11 +47,12 @@ pub(crate) fn update_grid<const D: usize>(
         ..
     } = &mut *grid;
     let (mass, force) = (&*mass, &*force);
-    momentum
+    let work = momentum
         .par_chunks_mut(CHUNK)
         .enumerate()
-        .for_each(|(chunk, velocities)| {
+        .map(|(chunk, velocities)| {
             let start = chunk * CHUNK;
+            let mut work = 0.0;
             for (k, v) in velocities.iter_mut().enumerate() {
                 let i = start + k;
                 let m = mass[i];
@@ -62,20 +65,23 @@ pub(crate) fn update_grid<const D: usize>(
                     // SAFETY: node ranges of chunks are disjoint.
                     unsafe { *old_out.get(i) = *v };
                 }
+                if params.forces && params.flip {
+                    *v += force[i] * (params.dt / m);
+                }
                 if params.forces {
-                    if params.flip {
-                        *v += force[i] * (params.dt / m);
-                    }
                     *v *= damping;
                 }
                 if !boundaries.is_empty() {
                     let ijk = grid_view.coords(i);
                     let x = grid_view.position(ijk);
-                    boundaries.apply(ijk, &x, params.time, v);
+                    work += boundaries.apply(ijk, &x, params.time, m, v);
                 }
             }
-        });
+            work
+        })
+        .sum();
     boundaries.mirror_stick_walls(grid);
+    work
 }
 
 /// The parts of the grid needed to locate a node.

@@ -146,6 +146,7 @@ pub struct Simulation<const D: usize, K: Kernel> {
     steps: u64,
     kinematics: KinematicStats<D>,
     stresses: StressStats,
+    boundary_work: f64,
     _kernel: std::marker::PhantomData<K>,
 }
 
@@ -373,6 +374,7 @@ where
             steps: 0,
             kinematics: KinematicStats::default(),
             stresses: StressStats::default(),
+            boundary_work: 0.0,
             _kernel: std::marker::PhantomData,
         }
     }
@@ -390,6 +392,11 @@ where
     /// Total momentum of the particles after the last step.
     pub fn momentum(&self) -> Vector<D> {
         self.kinematics.momentum
+    }
+
+    /// Work done on the body by moving obstacles so far.
+    pub fn boundary_work(&self) -> f64 {
+        self.boundary_work
     }
 
     /// Kinetic + strain + gravitational energy after the last step.
@@ -426,6 +433,13 @@ where
     }
 
     fn grid_update(&mut self, dt: f64, forces: bool) {
+        let work = self.grid_update_work(dt, forces);
+        if forces {
+            self.boundary_work += work;
+        }
+    }
+
+    fn grid_update_work(&mut self, dt: f64, forces: bool) -> f64 {
         let params = GridParams {
             dt,
             forces,
@@ -433,7 +447,7 @@ where
             damping: self.settings.damping,
             time: self.time + dt,
         };
-        update_grid(&mut self.grid, &self.boundaries, params);
+        update_grid(&mut self.grid, &self.boundaries, params)
     }
 
     fn g2p(&mut self, dt: f64, velocity: bool, position: bool, deformation: bool) {
@@ -595,6 +609,7 @@ where
             k.max_speed,
             k.min_det_f,
             k.momentum.norm(),
+            self.boundary_work,
         ];
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {
@@ -708,7 +723,8 @@ where
             let k = &self.kinematics;
             let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
             mechanical_max = mechanical_max.max(mechanical);
-            let energy = self.total_energy();
+            // Energy balance: what the body gained beyond the work done on it from outside.
+            let energy = self.total_energy() - self.boundary_work;
             drift = if mechanical_max > 0.0 {
                 (energy - energy0) / mechanical_max
             } else {
@@ -768,6 +784,7 @@ where
             min_det_f: min_det,
             max_speed,
             max_momentum,
+            boundary_work: self.boundary_work,
             frames: frame,
             threads: rayon::current_num_threads(),
             diagnostic,
