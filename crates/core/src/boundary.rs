@@ -332,11 +332,11 @@ fn for_each_node_in_plane(
 ) {
     let mut ijk = [0usize; 3];
     ijk[axis] = plane;
-    let others: Vec<usize> = (0..3).filter(|&d| d != axis).collect();
-    for p in 0..nodes[others[0]] {
-        for q in 0..nodes[others[1]] {
-            ijk[others[0]] = p;
-            ijk[others[1]] = q;
+    let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+    for p in 0..nodes[a] {
+        for q in 0..nodes[b] {
+            ijk[a] = p;
+            ijk[b] = q;
             f(ijk);
         }
     }

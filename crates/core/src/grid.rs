@@ -70,19 +70,13 @@ impl<const D: usize> Grid<D> {
     /// Integer coordinates of a node index.
     #[inline(always)]
     pub fn coords(&self, index: usize) -> [usize; 3] {
-        let i = index / self.stride[0];
-        let rem = index % self.stride[0];
-        [i, rem / self.stride[1], rem % self.stride[1]]
+        node_coords(&self.stride, index)
     }
 
     /// Position of a node.
     #[inline(always)]
     pub fn position(&self, ijk: [usize; 3]) -> Vector<D> {
-        let mut x = self.origin;
-        for d in 0..D {
-            x[d] += ijk[d] as f64 * self.dx;
-        }
-        x
+        node_position(&self.origin, self.dx, ijk)
     }
 
     /// Zeroes the arrays P2G accumulates into.
@@ -104,4 +98,22 @@ impl<const D: usize> Grid<D> {
             + (self.momentum.capacity() + self.force.capacity() + self.velocity_old.capacity())
                 * std::mem::size_of::<Vector<D>>()
     }
+}
+
+/// Integer coordinates of node `index` for index strides `stride`.
+#[inline(always)]
+pub fn node_coords(stride: &[usize; 3], index: usize) -> [usize; 3] {
+    let i = index / stride[0];
+    let rem = index % stride[0];
+    [i, rem / stride[1], rem % stride[1]]
+}
+
+/// Position of node `ijk` of a grid with node (0, 0, 0) at `origin` and cell size `dx`.
+#[inline(always)]
+pub fn node_position<const D: usize>(origin: &Vector<D>, dx: f64, ijk: [usize; 3]) -> Vector<D> {
+    let mut x = *origin;
+    for d in 0..D {
+        x[d] += ijk[d] as f64 * dx;
+    }
+    x
 }

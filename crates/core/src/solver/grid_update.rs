@@ -5,7 +5,7 @@
 
 use super::parallel::SharedSlice;
 use crate::boundary::Boundaries;
-use crate::grid::Grid;
+use crate::grid::{Grid, node_coords, node_position};
 use crate::math::Vector;
 use rayon::prelude::*;
 
@@ -35,11 +35,7 @@ pub(crate) fn update_grid<const D: usize>(
     boundaries.fold_stick_walls(grid);
     let damping = (-params.damping * params.dt).exp();
     let old_out = SharedSlice::new(&mut grid.velocity_old);
-    let grid_view = GridGeometry {
-        origin: grid.origin,
-        dx: grid.dx,
-        stride: grid.stride,
-    };
+    let (origin, dx, stride) = (grid.origin, grid.dx, grid.stride);
     let Grid {
         mass,
         momentum,
@@ -72,8 +68,8 @@ pub(crate) fn update_grid<const D: usize>(
                     *v *= damping;
                 }
                 if !boundaries.is_empty() {
-                    let ijk = grid_view.coords(i);
-                    let x = grid_view.position(ijk);
+                    let ijk = node_coords(&stride, i);
+                    let x = node_position(&origin, dx, ijk);
                     work += boundaries.apply(ijk, &x, params.time, m, v);
                 }
             }
@@ -82,29 +78,4 @@ pub(crate) fn update_grid<const D: usize>(
         .sum();
     boundaries.mirror_stick_walls(grid);
     work
-}
-
-/// The parts of the grid needed to locate a node.
-struct GridGeometry<const D: usize> {
-    origin: Vector<D>,
-    dx: f64,
-    stride: [usize; 3],
-}
-
-impl<const D: usize> GridGeometry<D> {
-    #[inline(always)]
-    fn coords(&self, index: usize) -> [usize; 3] {
-        let i = index / self.stride[0];
-        let rem = index % self.stride[0];
-        [i, rem / self.stride[1], rem % self.stride[1]]
-    }
-
-    #[inline(always)]
-    fn position(&self, ijk: [usize; 3]) -> Vector<D> {
-        let mut x = self.origin;
-        for d in 0..D {
-            x[d] += ijk[d] as f64 * self.dx;
-        }
-        x
-    }
 }
