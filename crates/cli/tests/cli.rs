@@ -86,6 +86,11 @@ fn invalid_scenes_are_rejected_with_json_paths() {
     s["output"]["fields"] = json!(["x", "temperature"]);
     assert_rejected(s, "output.fields[1]");
 
+    let mut s = bar_json();
+    s["solver"]["mls"] = json!(true);
+    s["solver"]["kernel"] = json!("linear");
+    assert_rejected(s, "solver.mls");
+
     // A fixed time step far above the stable one is refused before anything runs.
     let mut s = bar_json();
     s["solver"]["dt"] = json!(0.1);

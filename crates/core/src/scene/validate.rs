@@ -263,6 +263,15 @@ impl Validator {
         if s.mls && s.transfer != Transfer::Apic {
             self.err("solver.mls", "the MLS-MPM force needs `transfer: apic`");
         }
+        if s.mls && !matches!(s.kernel, KernelName::Bspline2 | KernelName::Bspline3) {
+            self.err(
+                "solver.mls",
+                "the MLS-MPM force needs a B-spline kernel (constant APIC inertia)",
+            );
+        }
+        if s.mls && s.scheme != Scheme::Usl {
+            self.err("solver.mls", "the MLS-MPM force is a USL scheme: use `scheme: usl`");
+        }
         if let Some(dt) = s.dt {
             self.positive("solver.dt", dt);
         }
