@@ -60,12 +60,107 @@ pub enum Command {
     },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
-    /// List the registered plugins and their material types.
+    /// List the registered plugins and their material types (of a server with --server).
     Plugins {
         /// Print every material's JSON Schema too.
         #[arg(long)]
         schemas: bool,
+        /// Ask this server instead of listing the local ones.
+        #[arg(long, env = "MPM_SERVER")]
+        server: Option<String>,
+        /// Bearer token for the server.
+        #[arg(long, env = "MPM_TOKEN")]
+        token: Option<String>,
     },
+    /// Start the job service (HTTP API over a SQLite job queue).
+    Serve {
+        /// Address to listen on.
+        #[arg(long, default_value = "127.0.0.1:8080", env = "MPM_LISTEN")]
+        listen: std::net::SocketAddr,
+        /// Folder for the job database and results.
+        #[arg(long, default_value = "mpm-data", env = "MPM_DATA")]
+        data: PathBuf,
+        /// Require `Authorization: Bearer TOKEN` on every route but /v1/health.
+        #[arg(long, env = "MPM_TOKEN")]
+        token: Option<String>,
+        /// Jobs run at once.
+        #[arg(long, default_value_t = 1)]
+        workers: usize,
+        /// Largest request body, bytes.
+        #[arg(long, default_value_t = 2 * 1024 * 1024)]
+        max_body_bytes: usize,
+        /// Largest particle count of a submitted scene.
+        #[arg(long, default_value_t = 5_000_000)]
+        max_particles: usize,
+        /// Most queued jobs.
+        #[arg(long, default_value_t = 1000)]
+        max_queued: usize,
+    },
+    /// Submit a scene to a server.
+    Submit {
+        /// Scene file (JSON).
+        scene: PathBuf,
+        /// Change a scene value first (repeatable).
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+        /// Wait for the job to end, with a progress bar, and print its metrics.
+        #[arg(long)]
+        wait: bool,
+        #[command(flatten)]
+        remote: RemoteArgs,
+    },
+    /// Show one job of a server.
+    Status {
+        /// Job id.
+        id: String,
+        #[command(flatten)]
+        remote: RemoteArgs,
+    },
+    /// List the jobs of a server.
+    List {
+        /// Only jobs with this status.
+        #[arg(long)]
+        status: Option<String>,
+        #[command(flatten)]
+        remote: RemoteArgs,
+    },
+    /// Cancel a queued or running job.
+    Cancel {
+        /// Job id.
+        id: String,
+        #[command(flatten)]
+        remote: RemoteArgs,
+    },
+    /// Download a job's result store into DIR/<name>.zarr.
+    Fetch {
+        /// Job id.
+        id: String,
+        /// Folder to download into.
+        #[arg(long, default_value = "results")]
+        out: PathBuf,
+        #[command(flatten)]
+        remote: RemoteArgs,
+    },
+}
+
+/// Where the job service is.
+#[derive(Debug, clap::Args)]
+pub struct RemoteArgs {
+    /// Server URL.
+    #[arg(long, default_value = "http://127.0.0.1:8080", env = "MPM_SERVER")]
+    pub server: String,
+    /// Bearer token for the server.
+    #[arg(long, env = "MPM_TOKEN")]
+    pub token: Option<String>,
+}
+
+impl RemoteArgs {
+    fn remote(&self) -> crate::client::Remote {
+        crate::client::Remote {
+            server: self.server.clone(),
+            token: self.token.clone(),
+        }
+    }
 }
 
 /// How `mpm` exits.
@@ -134,7 +229,8 @@ fn report_load_error(path: &Path, e: LoadError) -> ExitStatus {
 }
 
 /// Runs a parsed command line.
-pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
+pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
+    let registry = std::sync::Arc::new(registry);
     if let Some(threads) = cli.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -142,7 +238,7 @@ pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
             .context("setting the thread count")?;
     }
     match cli.command {
-        Command::Validate { scene, set } => match load_scene(&scene, &set, registry) {
+        Command::Validate { scene, set } => match load_scene(&scene, &set, &registry) {
             Ok(v) => {
                 if let Err(e) = mpm_core::solver::preflight(&v) {
                     eprintln!("error: {}: {e}", scene.display());
@@ -167,7 +263,7 @@ pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
             json,
             quiet,
         } => {
-            let validated = match load_scene(&scene, &set, registry) {
+            let validated = match load_scene(&scene, &set, &registry) {
                 Ok(v) => v,
                 Err(e) => return Ok(report_load_error(&scene, e)),
             };
@@ -202,11 +298,108 @@ pub fn run_cli(cli: Cli, registry: &Registry) -> anyhow::Result<ExitStatus> {
         Command::Schema => {
             println!(
                 "{}",
-                serde_json::to_string_pretty(&crate::scene_schema(registry))?
+                serde_json::to_string_pretty(&crate::scene_schema(&registry))?
             );
             Ok(ExitStatus::Success)
         }
-        Command::Plugins { schemas } => {
+        Command::Plugins {
+            server: Some(server),
+            token,
+            schemas,
+        } => {
+            let remote = crate::client::Remote { server, token };
+            let answer = crate::client::plugins(&remote)?;
+            for p in answer["plugins"].as_array().into_iter().flatten() {
+                println!(
+                    "{}: {}",
+                    p["name"].as_str().unwrap_or("?"),
+                    p["description"].as_str().unwrap_or("")
+                );
+                for (material, schema) in p["materials"].as_object().into_iter().flatten() {
+                    println!("  material `{material}`");
+                    if schemas {
+                        println!("{}", serde_json::to_string_pretty(schema)?);
+                    }
+                }
+            }
+            Ok(ExitStatus::Success)
+        }
+        Command::Serve {
+            listen,
+            data,
+            token,
+            workers,
+            max_body_bytes,
+            max_particles,
+            max_queued,
+        } => {
+            let config = mpm_service::Config {
+                listen,
+                data_dir: data,
+                token,
+                workers,
+                max_body_bytes,
+                max_particles,
+                max_queued,
+            };
+            let registry = registry.clone();
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .context("starting the async runtime")?;
+            runtime.block_on(mpm_service::serve(config, registry, async {
+                let _ = tokio::signal::ctrl_c().await;
+            }))?;
+            Ok(ExitStatus::Success)
+        }
+        Command::Submit {
+            scene,
+            set,
+            wait,
+            remote,
+        } => {
+            let remote = remote.remote();
+            let job = crate::client::submit(&remote, &scene, &set)?;
+            let id = job["id"].as_str().unwrap_or("?").to_string();
+            println!("submitted job {id}");
+            if !wait {
+                return Ok(ExitStatus::Success);
+            }
+            let job = crate::client::wait(&remote, &id, false)?;
+            println!("status {}", job["status"].as_str().unwrap_or("?"));
+            println!("{}", serde_json::to_string_pretty(&job["metrics"])?);
+            if !job["failure"].is_null() {
+                println!("failure {}", job["failure"]);
+            }
+            Ok(match job["status"].as_str() {
+                Some("succeeded") => ExitStatus::Success,
+                _ => ExitStatus::Stopped,
+            })
+        }
+        Command::Status { id, remote } => {
+            let job = crate::client::status(&remote.remote(), &id)?;
+            println!("{}", serde_json::to_string_pretty(&job)?);
+            Ok(ExitStatus::Success)
+        }
+        Command::List { status, remote } => {
+            let answer = crate::client::list(&remote.remote(), status.as_deref())?;
+            for job in answer["jobs"].as_array().into_iter().flatten() {
+                println!("{}", crate::client::job_line(job));
+            }
+            Ok(ExitStatus::Success)
+        }
+        Command::Cancel { id, remote } => {
+            let job = crate::client::cancel(&remote.remote(), &id)?;
+            println!("job {} is {}", id, job["status"].as_str().unwrap_or("?"));
+            Ok(ExitStatus::Success)
+        }
+        Command::Fetch { id, out, remote } => {
+            let path = crate::client::fetch(&remote.remote(), &id, &out)?;
+            println!("fetched {}", path.display());
+            Ok(ExitStatus::Success)
+        }
+        Command::Plugins { schemas, .. } => {
             for plugin in registry.plugins() {
                 println!("{}: {}", plugin.name(), plugin.description());
                 for (material, schema) in registry.materials_of(plugin.name()) {

@@ -1,6 +1,7 @@
 //! The `mpm` command as a library: the binary is `main_with(default_registry())`, and a
 //! plugin author builds their own `mpm` with one more line (see the plugin template).
 
+mod client;
 mod commands;
 mod overrides;
 mod progress;
@@ -38,7 +39,7 @@ pub fn scene_schema(registry: &Registry) -> serde_json::Value {
 pub fn main_with(registry: Registry) -> std::process::ExitCode {
     use clap::Parser;
     let cli = Cli::parse();
-    match run_cli(cli, &registry) {
+    match run_cli(cli, registry) {
         Ok(status) => status.into(),
         Err(e) => {
             eprintln!("error: {e:#}");

@@ -270,7 +270,10 @@ impl Validator {
             );
         }
         if s.mls && s.scheme != Scheme::Usl {
-            self.err("solver.mls", "the MLS-MPM force is a USL scheme: use `scheme: usl`");
+            self.err(
+                "solver.mls",
+                "the MLS-MPM force is a USL scheme: use `scheme: usl`",
+            );
         }
         if let Some(dt) = s.dt {
             self.positive("solver.dt", dt);

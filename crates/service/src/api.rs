@@ -1,0 +1,457 @@
+//! The HTTP API, versioned under /v1; described in api/openapi.yaml (a test keeps the two in
+//! step through [`ROUTES`]).
+
+use crate::error::{ApiError, Problem};
+use crate::{State, db, worker};
+use axum::body::Bytes;
+use axum::extract::rejection::BytesRejection;
+use axum::extract::{DefaultBodyLimit, Path, Query, Request};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::{Extension, Json, Router};
+use futures_util::stream::{self, Stream};
+use serde::Deserialize;
+use std::convert::Infallible;
+use std::path::{Component, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::watch;
+
+/// Every route: (method, path as in the OpenAPI file).
+pub const ROUTES: &[(&str, &str)] = &[
+    ("get", "/v1/health"),
+    ("get", "/v1/plugins"),
+    ("post", "/v1/jobs"),
+    ("get", "/v1/jobs"),
+    ("get", "/v1/jobs/{id}"),
+    ("delete", "/v1/jobs/{id}"),
+    ("get", "/v1/jobs/{id}/events"),
+    ("get", "/v1/jobs/{id}/files"),
+    ("get", "/v1/jobs/{id}/results/{path}"),
+];
+
+type Shared = Arc<State>;
+
+/// Builds the router.
+pub fn router(state: Shared, stop: watch::Receiver<bool>) -> Router {
+    let limit = state.config.max_body_bytes;
+    Router::new()
+        .route("/v1/health", get(health))
+        .route("/v1/plugins", get(plugins))
+        .route("/v1/jobs", get(list_jobs).post(submit))
+        .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
+        .route("/v1/jobs/{id}/events", get(events))
+        .route("/v1/jobs/{id}/files", get(files))
+        .route("/v1/jobs/{id}/results", get(results_root))
+        .route("/v1/jobs/{id}/results/{*path}", get(results))
+        .fallback(|| async { ApiError::not_found("no such route") })
+        .layer(middleware::from_fn_with_state(state.clone(), authorize))
+        .layer(DefaultBodyLimit::max(limit))
+        .layer(Extension(stop))
+        .with_state(state)
+}
+
+async fn authorize(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    request: Request,
+    next: Next,
+) -> Response {
+    if let Some(token) = &state.config.token
+        && request.uri().path() != "/v1/health"
+    {
+        let expected = format!("Bearer {token}");
+        let given = request
+            .headers()
+            .get(header::AUTHORIZATION)
+            .and_then(|h| h.to_str().ok());
+        if given != Some(expected.as_str()) {
+            return ApiError::new(
+                StatusCode::UNAUTHORIZED,
+                "unauthorized",
+                "a valid `Authorization: Bearer <token>` header is required",
+            )
+            .into_response();
+        }
+    }
+    next.run(request).await
+}
+
+async fn health() -> Json<serde_json::Value> {
+    Json(serde_json::json!({ "status": "ok", "version": mpm_core::VERSION }))
+}
+
+async fn plugins(
+    axum::extract::State(state): axum::extract::State<Shared>,
+) -> Json<serde_json::Value> {
+    let plugins: Vec<serde_json::Value> = state
+        .registry
+        .plugins()
+        .map(|p| {
+            let materials: serde_json::Map<String, serde_json::Value> = state
+                .registry
+                .materials_of(p.name())
+                .into_iter()
+                .map(|(name, schema)| (name.to_string(), schema))
+                .collect();
+            serde_json::json!({
+                "name": p.name(),
+                "description": p.description(),
+                "materials": materials,
+            })
+        })
+        .collect();
+    Json(serde_json::json!({ "plugins": plugins }))
+}
+
+/// Turns a body rejection (too large, unreadable) into a JSON error.
+fn body_error(e: BytesRejection) -> ApiError {
+    let status = e.status();
+    let code = if status == StatusCode::PAYLOAD_TOO_LARGE {
+        "body_too_large"
+    } else {
+        "bad_body"
+    };
+    ApiError::new(status, code, e.body_text())
+}
+
+async fn submit(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    headers: HeaderMap,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let body = body.map_err(body_error)?;
+    let json_type = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(';').next().unwrap_or("").trim() == "application/json");
+    if !json_type {
+        return Err(ApiError::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "unsupported_media_type",
+            "send the scene as `Content-Type: application/json`",
+        ));
+    }
+    let value: serde_json::Value = serde_json::from_slice(&body).map_err(|e| {
+        ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "bad_json",
+            format!("the body is not valid JSON: {e}"),
+        )
+    })?;
+    let registry = state.registry.clone();
+    let data_dir = state.config.data_dir.clone();
+    let checked = tokio::task::spawn_blocking(move || check_scene(value, &registry, &data_dir))
+        .await
+        .map_err(ApiError::internal)??;
+    if checked.particles > state.config.max_particles {
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "too_many_particles",
+            format!(
+                "the scene has {} particles; this server accepts at most {}",
+                checked.particles, state.config.max_particles
+            ),
+        ));
+    }
+    let id = uuid::Uuid::new_v4().to_string();
+    let queued = db::insert(
+        &state.db,
+        &id,
+        &checked.name,
+        &checked.scene,
+        checked.particles,
+        checked.end_time,
+        state.config.max_queued,
+    )
+    .await?;
+    if !queued {
+        return Err(ApiError::new(
+            StatusCode::TOO_MANY_REQUESTS,
+            "queue_full",
+            format!(
+                "the queue holds its maximum of {} jobs; try later",
+                state.config.max_queued
+            ),
+        ));
+    }
+    state.jobs.wake.notify_one();
+    let row = db::get(&state.db, &id)
+        .await?
+        .ok_or_else(|| ApiError::internal("job vanished"))?;
+    let location = format!("/v1/jobs/{id}");
+    let mut response = (StatusCode::ACCEPTED, Json(row.view())).into_response();
+    response.headers_mut().insert(
+        header::LOCATION,
+        HeaderValue::from_str(&location).map_err(ApiError::internal)?,
+    );
+    Ok(response)
+}
+
+struct CheckedScene {
+    name: String,
+    scene: String,
+    particles: usize,
+    end_time: f64,
+}
+
+/// Validates a submitted scene exactly as `mpm validate` does; particle files are refused
+/// (a request must not read files of the server).
+fn check_scene(
+    value: serde_json::Value,
+    registry: &mpm_core::plugin::Registry,
+    data_dir: &std::path::Path,
+) -> Result<CheckedScene, ApiError> {
+    let invalid = |problems: Vec<Problem>| {
+        let mut e = ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_scene",
+            "the scene is invalid; see `problems`",
+        );
+        e.problems = problems;
+        e
+    };
+    if let Some(bodies) = value.get("bodies").and_then(|b| b.as_array()) {
+        let problems: Vec<Problem> = bodies
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.pointer("/shape/file").is_some())
+            .map(|(i, _)| Problem {
+                path: format!("bodies[{i}].shape.file"),
+                message: "particle files are not accepted by the job service; submit shapes".into(),
+            })
+            .collect();
+        if !problems.is_empty() {
+            return Err(invalid(problems));
+        }
+    }
+    let validated = mpm_core::scene::parse_scene_value(value, registry, data_dir).map_err(|e| {
+        invalid(
+            e.issues
+                .into_iter()
+                .map(|i| Problem {
+                    path: i.path,
+                    message: i.message,
+                })
+                .collect(),
+        )
+    })?;
+    if let Err(e) = mpm_core::solver::preflight(&validated) {
+        let (path, message) = match e {
+            mpm_core::solver::RunError::Refused { path, message } => (path, message),
+            other => ("$".to_string(), other.to_string()),
+        };
+        return Err(invalid(vec![Problem { path, message }]));
+    }
+    Ok(CheckedScene {
+        name: validated.scene.name.clone(),
+        scene: validated.json.to_string(),
+        particles: validated.particle_count(),
+        end_time: validated.scene.solver.end_time,
+    })
+}
+
+#[derive(Deserialize)]
+struct ListQuery {
+    status: Option<String>,
+    limit: Option<i64>,
+    offset: Option<i64>,
+}
+
+async fn list_jobs(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    query: Result<Query<ListQuery>, axum::extract::rejection::QueryRejection>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let Query(q) =
+        query.map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, "bad_query", e.body_text()))?;
+    if let Some(s) = &q.status
+        && !matches!(
+            s.as_str(),
+            "queued" | "running" | "succeeded" | "failed" | "cancelled"
+        )
+    {
+        return Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "bad_query",
+            format!("unknown status `{s}` (queued, running, succeeded, failed, cancelled)"),
+        ));
+    }
+    let limit = q.limit.unwrap_or(100).clamp(1, 1000);
+    let offset = q.offset.unwrap_or(0).max(0);
+    let (rows, total) = db::list(&state.db, q.status.as_deref(), limit, offset).await?;
+    let jobs: Vec<_> = rows.iter().map(|r| r.view()).collect();
+    Ok(Json(
+        serde_json::json!({ "jobs": jobs, "total": total, "limit": limit, "offset": offset }),
+    ))
+}
+
+/// Parses a job id; anything that is not a UUID is an unknown job.
+fn job_id(raw: &str) -> Result<String, ApiError> {
+    uuid::Uuid::parse_str(raw)
+        .map(|u| u.to_string())
+        .map_err(|_| ApiError::not_found(format!("no job `{raw}`")))
+}
+
+async fn find(state: &State, raw: &str) -> Result<db::JobRow, ApiError> {
+    let id = job_id(raw)?;
+    db::get(&state.db, &id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(format!("no job `{raw}`")))
+}
+
+async fn get_job(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    Path(id): Path<String>,
+) -> Result<Json<db::JobView>, ApiError> {
+    Ok(Json(find(&state, &id).await?.view()))
+}
+
+async fn cancel_job(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    Path(id): Path<String>,
+) -> Result<Json<db::JobView>, ApiError> {
+    let row = find(&state, &id).await?;
+    if db::is_final(&row.status) {
+        return Err(ApiError::new(
+            StatusCode::CONFLICT,
+            "already_finished",
+            format!("job {} is already {}", row.id, row.status),
+        ));
+    }
+    if !db::cancel_queued(&state.db, &row.id).await? {
+        // Running: ask it to stop; it ends within one step and keeps what it wrote.
+        db::request_cancel(&state.db, &row.id).await?;
+        state.jobs.cancel(&row.id);
+        for _ in 0..100 {
+            let now = find(&state, &row.id).await?;
+            if db::is_final(&now.status) {
+                return Ok(Json(now.view()));
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+    Ok(Json(find(&state, &row.id).await?.view()))
+}
+
+async fn events(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(stop): Extension<watch::Receiver<bool>>,
+    Path(id): Path<String>,
+) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
+    let row = find(&state, &id).await?;
+    // Sends the job whenever its status or step changed; ends at a final state or when the
+    // server shuts down (an open stream would otherwise hold the shutdown).
+    let stream = stream::unfold(
+        (
+            state.clone(),
+            row.id.clone(),
+            None::<(String, i64)>,
+            false,
+            stop,
+        ),
+        |(state, id, last, done, mut stop)| async move {
+            if done || *stop.borrow() {
+                return None;
+            }
+            loop {
+                let row = match db::get(&state.db, &id).await {
+                    Ok(Some(r)) => r,
+                    _ => return None,
+                };
+                let key = (row.status.clone(), row.step);
+                if last.as_ref() != Some(&key) {
+                    let finished = db::is_final(&row.status);
+                    let kind = if finished { "final" } else { "progress" };
+                    let event = Event::default()
+                        .event(kind)
+                        .json_data(row.view())
+                        .unwrap_or_else(|_| Event::default().data("{}"));
+                    return Some((Ok(event), (state, id, Some(key), finished, stop)));
+                }
+                tokio::select! {
+                    _ = tokio::time::sleep(Duration::from_millis(200)) => {}
+                    _ = stop.changed() => return None,
+                }
+            }
+        },
+    );
+    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+}
+
+/// Every file of a job's result store, as paths relative to `results/`.
+async fn files(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    Path(id): Path<String>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let row = find(&state, &id).await?;
+    let root = worker::results_path(&state, &row.id);
+    let list = tokio::task::spawn_blocking(move || {
+        let mut out = Vec::new();
+        let mut stack = vec![root.clone()];
+        while let Some(dir) = stack.pop() {
+            let Ok(entries) = std::fs::read_dir(&dir) else {
+                continue;
+            };
+            for entry in entries.flatten() {
+                let path = entry.path();
+                if path.is_dir() {
+                    stack.push(path);
+                } else if let Ok(rel) = path.strip_prefix(&root) {
+                    out.push(rel.to_string_lossy().replace('\\', "/"));
+                }
+            }
+        }
+        out.sort();
+        out
+    })
+    .await
+    .map_err(ApiError::internal)?;
+    Ok(Json(serde_json::json!({ "files": list })))
+}
+
+async fn results_root(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    serve_file(&state, &id, "zarr.json").await
+}
+
+async fn results(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    Path((id, path)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    serve_file(&state, &id, &path).await
+}
+
+/// Serves one file of a job's store; any path that could leave the store is a 404.
+async fn serve_file(state: &State, id: &str, path: &str) -> Result<Response, ApiError> {
+    let row = find(state, id).await?;
+    let relative = PathBuf::from(path);
+    let safe = !path.is_empty()
+        && !path.contains('\\')
+        && !path.contains('\0')
+        && relative
+            .components()
+            .all(|c| matches!(c, Component::Normal(_)));
+    if !safe {
+        return Err(ApiError::not_found(format!(
+            "no file `{path}` in the results"
+        )));
+    }
+    let full = worker::results_path(state, &row.id).join(&relative);
+    match tokio::fs::read(&full).await {
+        Ok(bytes) => {
+            let kind = if path.ends_with(".json") {
+                "application/json"
+            } else {
+                "application/octet-stream"
+            };
+            Ok(([(header::CONTENT_TYPE, kind)], bytes).into_response())
+        }
+        Err(_) => Err(ApiError::not_found(format!(
+            "no file `{path}` in the results"
+        ))),
+    }
+}
