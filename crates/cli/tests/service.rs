@@ -476,3 +476,113 @@ fn a_burst_of_100_concurrent_jobs_all_finish_once() {
     );
     assert_eq!(failures, 0);
 }
+
+/// (method, path, documented status codes) read from api/openapi.yaml. The file's layout
+/// is fixed (two-space indents: paths at 2, methods at 4, response codes at 8), which this
+/// reader relies on and checks.
+fn documented_operations() -> Vec<(String, String, Vec<u16>)> {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../api/openapi.yaml"),
+    )
+    .unwrap();
+    let mut in_paths = false;
+    let mut path = String::new();
+    let mut ops: Vec<(String, String, Vec<u16>)> = Vec::new();
+    for line in text.lines() {
+        if line == "paths:" {
+            in_paths = true;
+            continue;
+        }
+        if !in_paths {
+            continue;
+        }
+        let method = line.strip_prefix("    ").and_then(|l| l.strip_suffix(':'));
+        let code = line.strip_prefix("        '").and_then(|l| l.get(..3));
+        if let Some(p) = line.strip_prefix("  /").and_then(|l| l.strip_suffix(':')) {
+            path = format!("/{p}");
+        } else if let Some(m) =
+            method.filter(|m| ["get", "post", "delete", "put", "patch"].contains(m))
+        {
+            ops.push((m.to_string(), path.clone(), Vec::new()));
+        } else if let (Some(Ok(code)), Some(op)) = (code.map(str::parse::<u16>), ops.last_mut()) {
+            op.2.push(code);
+        }
+    }
+    assert!(
+        ops.iter().all(|o| !o.2.is_empty()),
+        "every operation documents its responses"
+    );
+    ops
+}
+
+#[test]
+fn the_server_and_openapi_yaml_agree() {
+    let ops = documented_operations();
+    let documented: std::collections::BTreeSet<(String, String)> =
+        ops.iter().map(|(m, p, _)| (m.clone(), p.clone())).collect();
+    let served: std::collections::BTreeSet<(String, String)> = mpm_service::ROUTES
+        .iter()
+        .map(|(m, p)| (m.to_string(), p.to_string()))
+        .collect();
+    assert_eq!(documented, served, "api/openapi.yaml and the router differ");
+
+    // Every documented operation answers a live server with a documented status.
+    let data = tempfile::tempdir().unwrap();
+    let server = Server::start(data.path(), &[]);
+    let r = submit(&server.url, &small_bar(0.01));
+    let id = r.json::<Value>().unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    wait_final(&server.url, &id, Duration::from_secs(30));
+    let c = client();
+    for (method, path, codes) in &ops {
+        let concrete = path
+            .replace("{id}", &id)
+            .replace("{path}", "time/zarr.json");
+        let url = format!("{}{}", server.url, concrete);
+        let response = match method.as_str() {
+            "get" => c.get(&url).send().unwrap(),
+            "post" => c.post(&url).json(&small_bar(0.01)).send().unwrap(),
+            "delete" => c.delete(&url).send().unwrap(),
+            other => panic!("undocumented method {other}"),
+        };
+        let status = response.status().as_u16();
+        assert!(
+            codes.contains(&status),
+            "{method} {path} answered {status}, documented {codes:?}"
+        );
+        let missing = format!(
+            "{}{}",
+            server.url,
+            path.replace("{id}", "00000000-0000-0000-0000-000000000000")
+                .replace("{path}", "zarr.json")
+        );
+        if path.contains("{id}") && method == "get" {
+            assert_eq!(
+                c.get(&missing).send().unwrap().status(),
+                404,
+                "{path} with an unknown job"
+            );
+        }
+    }
+    // Routes not in the file do not exist.
+    for (method, path) in [
+        ("put", "/v1/jobs"),
+        ("get", "/v1/job"),
+        ("post", "/v1/health"),
+        ("get", "/v2/jobs"),
+    ] {
+        let url = format!("{}{}", server.url, path);
+        let status = c
+            .request(method.parse().unwrap(), &url)
+            .send()
+            .unwrap()
+            .status()
+            .as_u16();
+        assert!(
+            status == 404 || status == 405,
+            "{method} {path} answered {status}"
+        );
+    }
+}

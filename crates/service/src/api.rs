@@ -30,6 +30,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("delete", "/v1/jobs/{id}"),
     ("get", "/v1/jobs/{id}/events"),
     ("get", "/v1/jobs/{id}/files"),
+    ("get", "/v1/jobs/{id}/results"),
     ("get", "/v1/jobs/{id}/results/{path}"),
 ];
 
