@@ -121,11 +121,7 @@ fn submit_watch_fetch_and_compare_with_a_local_run() {
         .unwrap();
     let finals: Vec<&str> = events.lines().filter(|l| *l == "event: final").collect();
     assert_eq!(finals.len(), 1, "{events}");
-    let last_data = events
-        .lines()
-        .filter(|l| l.starts_with("data: "))
-        .last()
-        .unwrap();
+    let last_data = events.lines().rfind(|l| l.starts_with("data: ")).unwrap();
     let last: Value = serde_json::from_str(&last_data[6..]).unwrap();
     assert_eq!(last["status"], "succeeded");
 
