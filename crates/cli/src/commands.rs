@@ -72,6 +72,25 @@ pub enum Command {
         #[arg(long, env = "MPM_TOKEN")]
         token: Option<String>,
     },
+    /// Run a scene over a sweep of settings; table (CSV, JSON) and plot (PNG, SVG) of error
+    /// against wall time.
+    Study {
+        /// Scene file (JSON); it should carry a reference.
+        scene: PathBuf,
+        /// A swept setting, `KEY=V1,V2,...` (repeatable). KEY is any scene path
+        /// (`solver.cfl`) or one of cell_size, kernel, transfer, scheme, cfl, mls, dt, ppc.
+        #[arg(long = "vary", value_name = "KEY=V1,V2", required = true)]
+        vary: Vec<String>,
+        /// Output folder (default results/<scene>-study).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Submit the runs to this server as a group of jobs instead of running locally.
+        #[arg(long, env = "MPM_SERVER")]
+        server: Option<String>,
+        /// Bearer token for the server.
+        #[arg(long, env = "MPM_TOKEN")]
+        token: Option<String>,
+    },
     /// Start the job service (HTTP API over a SQLite job queue).
     Serve {
         /// Address to listen on.
@@ -351,6 +370,49 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             runtime.block_on(mpm_service::serve(config, registry, async {
                 let _ = tokio::signal::ctrl_c().await;
             }))?;
+            Ok(ExitStatus::Success)
+        }
+        Command::Study {
+            scene,
+            vary,
+            out,
+            server,
+            token,
+        } => {
+            let text = std::fs::read_to_string(&scene)
+                .with_context(|| format!("cannot read scene file `{}`", scene.display()))?;
+            let value: serde_json::Value = serde_json::from_str(&text)
+                .with_context(|| format!("`{}` is not valid JSON", scene.display()))?;
+            let bodies = value["bodies"].as_array().map_or(0, |b| b.len());
+            let vars = vary
+                .iter()
+                .map(|v| crate::study::parse_variation(v, bodies))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let report = |i: usize, n: usize, labels: &[(String, String)]| {
+                let text: Vec<String> = labels.iter().map(|(k, v)| format!("{k}={v}")).collect();
+                eprintln!("run {}/{n}: {}", i + 1, text.join(" "));
+            };
+            let rows = match server {
+                Some(server) => {
+                    let remote = crate::client::Remote { server, token };
+                    crate::study::run_remote(&scene, &vars, &remote, report)?
+                }
+                None => crate::study::run_local(&scene, &vars, &registry, report),
+            };
+            let dir = out.unwrap_or_else(|| crate::study::default_dir(&scene));
+            crate::study::write_tables(&dir, &vars, &rows)?;
+            let title = format!(
+                "{}: error against wall time",
+                value["name"].as_str().unwrap_or("study")
+            );
+            crate::plot::draw(&dir, &title, &rows)?;
+            print!("{}", crate::study::table(&vars, &rows));
+            for (name, group) in crate::study::series(&rows) {
+                if let Some(order) = crate::study::observed_order(&group) {
+                    println!("observed order {order:.2}: {name}");
+                }
+            }
+            println!("wrote {}/study.{{csv,json,png,svg}}", dir.display());
             Ok(ExitStatus::Success)
         }
         Command::Submit {

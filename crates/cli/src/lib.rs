@@ -4,7 +4,9 @@
 mod client;
 mod commands;
 mod overrides;
+mod plot;
 mod progress;
+pub mod study;
 
 pub use commands::{Cli, Command, ExitStatus, LoadError, load_scene, run_cli};
 pub use overrides::apply_override;

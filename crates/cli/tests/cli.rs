@@ -264,3 +264,48 @@ fn every_example_scene_validates() {
     }
     assert!(count >= 4);
 }
+
+#[test]
+fn study_writes_table_and_plot_with_the_observed_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example("vibrating-bar.json");
+    let o = mpm(
+        &[
+            "study",
+            scene.to_str().unwrap(),
+            "--vary",
+            "cell_size=0.1,0.05,0.025",
+            "--vary",
+            "transfer=pic,apic",
+            "--vary",
+            "solver.mls=false,true",
+            "--out",
+            "st",
+        ],
+        dir.path(),
+    );
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let csv = std::fs::read_to_string(dir.path().join("st/study.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(
+        lines[0],
+        "cell_size,transfer,solver.mls,outcome,wall_seconds,steps,particles,error,energy_drift,message"
+    );
+    assert_eq!(lines.len(), 1 + 12);
+    // MLS with PIC is refused by validation; the study records it and goes on.
+    assert_eq!(csv.matches(",invalid,").count(), 3, "{csv}");
+    assert_eq!(csv.matches(",finished,").count(), 9, "{csv}");
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st/study.json")).unwrap())
+            .unwrap();
+    assert_eq!(rows.as_array().unwrap().len(), 12);
+    assert!(
+        t.contains("observed order 2.0") || t.contains("observed order 1.9"),
+        "{t}"
+    );
+    let png = std::fs::read(dir.path().join("st/study.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let svg = std::fs::read_to_string(dir.path().join("st/study.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("Pareto front"));
+}

@@ -582,3 +582,44 @@ fn the_server_and_openapi_yaml_agree() {
         );
     }
 }
+
+#[test]
+fn a_study_runs_as_a_group_of_jobs_on_the_server() {
+    let data = tempfile::tempdir().unwrap();
+    let server = Server::start(data.path(), &[]);
+    let out = tempfile::tempdir().unwrap();
+    let scene = example("vibrating-bar.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_mpm"))
+        .args([
+            "study",
+            scene.to_str().unwrap(),
+            "--vary",
+            "cell_size=0.1,0.05",
+            "--server",
+            &server.url,
+            "--out",
+        ])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("study.json")).unwrap())
+            .unwrap();
+    let local = run(&load_example(
+        "vibrating-bar.json",
+        &["domain.cell_size=0.05"],
+    ));
+    assert_eq!(
+        rows[1]["error"].as_f64(),
+        local.error,
+        "the server's run equals the local one"
+    );
+    let list: Value = client()
+        .get(format!("{}/v1/jobs", server.url))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    assert_eq!(list["total"], 2);
+}
