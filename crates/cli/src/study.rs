@@ -72,8 +72,14 @@ pub struct StudyRow {
     pub message: Option<String>,
 }
 
+/// The (key, value) of every varied setting of one run.
+pub type Labels = Vec<(String, String)>;
+
+/// One run of a study: its `--set` overrides and their labels.
+pub type Combination = (Vec<String>, Labels);
+
 /// Every combination of the variations, as override lists with their (key, value) labels.
-pub fn combinations(vars: &[Variation]) -> Vec<(Vec<String>, Vec<(String, String)>)> {
+pub fn combinations(vars: &[Variation]) -> Vec<Combination> {
     let mut out = vec![(Vec::new(), Vec::new())];
     for v in vars {
         let mut next = Vec::new();
