@@ -91,6 +91,15 @@ pub enum Command {
         #[arg(long, env = "MPM_TOKEN")]
         token: Option<String>,
     },
+    /// Run the stability suite (stiff and extreme cases) and print its table.
+    CheckStability {
+        /// Only the cases whose name contains this.
+        #[arg(long)]
+        only: Option<String>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Start the job service (HTTP API over a SQLite job queue).
     Serve {
         /// Address to listen on.
@@ -371,6 +380,27 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 let _ = tokio::signal::ctrl_c().await;
             }))?;
             Ok(ExitStatus::Success)
+        }
+        Command::CheckStability { only, json } => {
+            let mut results = Vec::new();
+            for case in crate::stability::cases() {
+                if only.as_deref().is_some_and(|o| !case.name.contains(o)) {
+                    continue;
+                }
+                eprintln!("{}: {}", case.name, case.what);
+                results.push(crate::stability::run_case(&case, &registry));
+            }
+            print!("{}", crate::stability::table(&results));
+            if let Some(path) = json {
+                std::fs::write(&path, serde_json::to_string_pretty(&results)?)?;
+            }
+            let failed = results.iter().filter(|r| !r.pass).count();
+            println!("{} passed, {failed} failed", results.len() - failed);
+            Ok(if failed == 0 {
+                ExitStatus::Success
+            } else {
+                ExitStatus::Failure
+            })
         }
         Command::Study {
             scene,

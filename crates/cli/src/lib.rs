@@ -6,6 +6,7 @@ mod commands;
 mod overrides;
 mod plot;
 mod progress;
+pub mod stability;
 pub mod study;
 
 pub use commands::{Cli, Command, ExitStatus, LoadError, load_scene, run_cli};

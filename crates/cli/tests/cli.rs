@@ -309,3 +309,24 @@ fn study_writes_table_and_plot_with_the_observed_order() {
     let svg = std::fs::read_to_string(dir.path().join("st/study.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("Pareto front"));
 }
+
+#[test]
+fn stability_suite_outcomes_do_not_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = mpm(&["check-stability", "--json", "stability.json"], dir.path());
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("stability.json")).unwrap())
+            .unwrap();
+    let results = results.as_array().unwrap();
+    assert!(results.len() >= 13);
+    for r in results {
+        assert_eq!(r["pass"], true, "{r}");
+        // Nothing that finished or stopped may have produced NaN in its figures.
+        if r["outcome"] != "refused" {
+            assert!(r["min_det_f"].as_f64().is_some_and(f64::is_finite), "{r}");
+        }
+    }
+    assert!(t.contains("0 failed"), "{t}");
+}

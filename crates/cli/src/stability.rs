@@ -1,0 +1,331 @@
+//! `mpm check-stability`: a fixed set of stiff and extreme cases, each with the outcome it
+//! must have. A test runs the suite and fails when an outcome changes.
+
+use mpm_core::output::{Metrics, NullSink, Outcome};
+use mpm_core::plugin::Registry;
+use mpm_core::solver::{Control, Progress, RunError, preflight, run_scene};
+use serde::Serialize;
+use serde_json::{Value, json};
+use std::path::Path;
+use std::time::Instant;
+
+/// How a case must end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Expected {
+    /// Runs to its end time.
+    Finished,
+    /// Stops itself with a diagnostic, without writing NaN.
+    Stopped,
+    /// Refused before the first step (a time step past stability).
+    Refused,
+}
+
+/// One case of the suite.
+pub struct Case {
+    /// Short name.
+    pub name: &'static str,
+    /// What it exercises.
+    pub what: &'static str,
+    /// The scene.
+    pub scene: Value,
+    /// The outcome it must have.
+    pub expected: Expected,
+}
+
+/// The result of one case.
+#[derive(Debug, Serialize)]
+pub struct CaseResult {
+    /// Case name.
+    pub name: String,
+    /// Expected outcome.
+    pub expected: Expected,
+    /// `finished`, `stopped`, `refused` or `invalid`.
+    pub outcome: String,
+    /// Whether the outcome is the expected one (and no NaN was seen).
+    pub pass: bool,
+    /// Steps taken.
+    pub steps: u64,
+    /// Wall seconds (setup excluded).
+    pub wall_seconds: f64,
+    /// Energy drift (see the README).
+    pub energy_drift: f64,
+    /// Smallest det F seen.
+    pub min_det_f: f64,
+    /// Largest particle speed seen.
+    pub max_speed: f64,
+    /// The diagnostic or refusal, if any.
+    pub note: String,
+}
+
+fn elastic(kind: &str, e: f64, nu: f64, rho: f64) -> Value {
+    json!({"type": kind, "density": rho, "youngs_modulus": e, "poisson_ratio": nu})
+}
+
+/// A soft block on the floor with a stiff block resting on it, stiffness ratio `ratio`.
+fn contrast(ratio: f64) -> Value {
+    json!({
+        "name": "contrast", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1, 1], "cell_size": 0.025,
+                   "walls": [{"sides": ["x-", "x+", "y-", "y+"], "condition": "slip"}]},
+        "solver": {"end_time": 0.01, "gravity": [0, -9.81]},
+        "materials": {"soft": elastic("neo_hookean", 1e4, 0.3, 1000.0),
+                      "stiff": elastic("neo_hookean", 1e4 * ratio, 0.3, 1000.0)},
+        "bodies": [
+            {"material": "soft", "shape": {"box": {"min": [0.3, 0.0], "max": [0.7, 0.2]}}},
+            {"material": "stiff", "shape": {"box": {"min": [0.35, 0.2], "max": [0.65, 0.3]}}}],
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// A block squeezed under gravity on the floor, Poisson ratio `nu`.
+fn near_incompressible(nu: f64) -> Value {
+    json!({
+        "name": "incompressible", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1, 0.5], "cell_size": 0.025,
+                   "walls": [{"sides": ["y-"], "condition": "stick"}]},
+        "solver": {"end_time": 0.05, "gravity": [0, -9.81], "damping": 20.0},
+        "materials": {"rubber": elastic("neo_hookean", 1e5, nu, 1000.0)},
+        "bodies": [{"material": "rubber", "shape": {"box": {"min": [0.3, 0.0], "max": [0.7, 0.2]}}}],
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// The vibrating bar with a fixed time step `factor` times its stable one, allowing
+/// Courant number `max_cfl`. The stable step is dx / (c + max |v|) = 0.05 / 10.01 s;
+/// 4.99e-3 s is that, rounded down.
+fn bar_time_step(factor: f64, max_cfl: f64) -> Value {
+    let mut s: Value = serde_json::from_str(include_str!("../../../examples/vibrating-bar.json"))
+        .expect("the example is JSON");
+    s["solver"]["dt"] = json!(4.99e-3 * factor);
+    s["solver"]["max_cfl"] = json!(max_cfl);
+    s["output"]["frames"] = json!(4);
+    s
+}
+
+/// A block squeezed to 10% of its height between the floor and a descending plane.
+fn compression() -> Value {
+    json!({
+        "name": "compression", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [2, 0.5], "cell_size": 0.0125,
+                   "walls": [{"sides": ["y-"], "condition": "slip"}]},
+        "solver": {"end_time": 0.9, "cfl": 0.3},
+        "materials": {"foam": elastic("neo_hookean", 1e5, 0.2, 100.0)},
+        "bodies": [{"material": "foam", "shape": {"box": {"min": [0.8, 0.0], "max": [1.2, 0.2]}}}],
+        "obstacles": [{"shape": {"plane": {"point": [0, 0.2], "normal": [0, -1]}},
+                       "condition": "slip", "velocity": [0, -0.2]}],
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// A disk spinning freely; energy must stay.
+fn spinning_disk() -> Value {
+    json!({
+        "name": "spin", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1, 1], "cell_size": 0.02},
+        "solver": {"end_time": 1.0, "cfl": 0.3},
+        "materials": {"disk": elastic("neo_hookean", 1e5, 0.3, 1000.0)},
+        "bodies": [{"material": "disk", "shape": {"sphere": {"center": [0.5, 0.5], "radius": 0.3}},
+                    "velocity": {"rotation": {"center": [0.5, 0.5], "angular_velocity": [2.0]}}}],
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// A block thrown toward an open face of the domain.
+fn leaving() -> Value {
+    json!({
+        "name": "leaving", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1, 0.5], "cell_size": 0.025},
+        "solver": {"end_time": 1.0},
+        "materials": {"block": elastic("neo_hookean", 1e5, 0.3, 1000.0)},
+        "bodies": [{"material": "block", "shape": {"box": {"min": [0.5, 0.1], "max": [0.7, 0.3]}},
+                    "velocity": {"uniform": [2.0, 0.0]}}],
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// One particle per cell splashing onto the floor: nearly empty cells at free surfaces.
+fn sparse_surface() -> Value {
+    json!({
+        "name": "sparse", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1, 1], "cell_size": 0.025,
+                   "walls": [{"sides": ["x-", "x+", "y-"], "condition": "slip"}]},
+        "solver": {"end_time": 0.3, "gravity": [0, -9.81]},
+        "materials": {"jelly": elastic("neo_hookean", 1e4, 0.3, 1000.0)},
+        "bodies": [{"material": "jelly", "shape": {"sphere": {"center": [0.5, 0.5], "radius": 0.15}},
+                    "particles_per_cell": 1, "velocity": {"uniform": [0.0, -2.0]}}],
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// Every case of the suite.
+pub fn cases() -> Vec<Case> {
+    vec![
+        Case {
+            name: "contrast-1e4",
+            what: "stiff block on a soft one, E ratio 1e4",
+            scene: contrast(1e4),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "contrast-1e6",
+            what: "stiff block on a soft one, E ratio 1e6",
+            scene: contrast(1e6),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "nu-0.49",
+            what: "block under gravity, nu = 0.49",
+            scene: near_incompressible(0.49),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "nu-0.499",
+            what: "block under gravity, nu = 0.499",
+            scene: near_incompressible(0.499),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "dt-0.5x",
+            what: "bar, fixed dt at 0.5x the stable step",
+            scene: bar_time_step(0.5, 1.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "dt-1x",
+            what: "bar, fixed dt at the stable step",
+            scene: bar_time_step(1.0, 1.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "dt-2x",
+            what: "bar, fixed dt at 2x the stable step",
+            scene: bar_time_step(2.0, 1.0),
+            expected: Expected::Refused,
+        },
+        Case {
+            name: "dt-10x",
+            what: "bar, fixed dt at 10x the stable step",
+            scene: bar_time_step(10.0, 1.0),
+            expected: Expected::Refused,
+        },
+        Case {
+            name: "dt-10x-forced",
+            what: "bar, 10x the stable step with max_cfl raised to allow it",
+            scene: bar_time_step(10.0, 20.0),
+            expected: Expected::Stopped,
+        },
+        Case {
+            name: "compress-10%",
+            what: "block squeezed to 10% of its height by a plane",
+            scene: compression(),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "spinning-disk",
+            what: "free disk spinning at 2 rad/s for 1 s",
+            scene: spinning_disk(),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "leaving",
+            what: "block thrown out of an open face",
+            scene: leaving(),
+            expected: Expected::Stopped,
+        },
+        Case {
+            name: "sparse-surface",
+            what: "1 particle per cell splashing onto the floor",
+            scene: sparse_surface(),
+            expected: Expected::Finished,
+        },
+    ]
+}
+
+/// Runs one case.
+pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
+    let mut result = CaseResult {
+        name: case.name.to_string(),
+        expected: case.expected,
+        outcome: String::new(),
+        pass: false,
+        steps: 0,
+        wall_seconds: 0.0,
+        energy_drift: 0.0,
+        min_det_f: f64::NAN,
+        max_speed: f64::NAN,
+        note: String::new(),
+    };
+    let scene =
+        match mpm_core::scene::parse_scene_value(case.scene.clone(), registry, Path::new(".")) {
+            Ok(s) => s,
+            Err(e) => {
+                result.outcome = "invalid".into();
+                result.note = e.to_string();
+                return result;
+            }
+        };
+    if let Err(RunError::Refused { path, message }) = preflight(&scene) {
+        result.outcome = "refused".into();
+        result.note = format!("{path}: {message}");
+        result.pass = case.expected == Expected::Refused;
+        return result;
+    }
+    let start = Instant::now();
+    let metrics: Metrics =
+        match run_scene(&scene, &mut NullSink, &mut |_: &Progress| Control::Continue) {
+            Ok(m) => m,
+            Err(e) => {
+                result.outcome = "error".into();
+                result.note = e.to_string();
+                return result;
+            }
+        };
+    result.wall_seconds = start.elapsed().as_secs_f64();
+    result.steps = metrics.steps;
+    result.energy_drift = metrics.energy_drift;
+    result.min_det_f = metrics.min_det_f;
+    result.max_speed = metrics.max_speed;
+    result.outcome = match metrics.outcome {
+        Some(Outcome::Finished) => "finished",
+        Some(Outcome::Stopped) => "stopped",
+        _ => "cancelled",
+    }
+    .into();
+    if let Some(d) = &metrics.diagnostic {
+        result.note = format!(
+            "step {}: {} = {:.3e}: {}",
+            d.step, d.field, d.value, d.message
+        );
+    }
+    let expected = match case.expected {
+        Expected::Finished => "finished",
+        Expected::Stopped => "stopped",
+        Expected::Refused => "refused",
+    };
+    result.pass = result.outcome == expected;
+    result
+}
+
+/// The results as a Markdown table.
+pub fn table(results: &[CaseResult]) -> String {
+    let mut out = String::from(
+        "| case | expected | outcome | steps | wall s | energy drift | worst det F | max speed | note |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in results {
+        out += &format!(
+            "| {} | {:?} | {}{} | {} | {:.2} | {:+.2e} | {:.3} | {:.3} | {} |\n",
+            r.name,
+            r.expected,
+            r.outcome,
+            if r.pass { "" } else { " **(unexpected)**" },
+            r.steps,
+            r.wall_seconds,
+            r.energy_drift,
+            r.min_det_f,
+            r.max_speed,
+            r.note.chars().take(90).collect::<String>()
+        );
+    }
+    out
+}
