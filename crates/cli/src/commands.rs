@@ -84,6 +84,9 @@ pub enum Command {
         /// Output folder (default results/<scene>-study).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Local runs at a time (they then share the cores; 1 keeps wall times comparable).
+        #[arg(long, default_value_t = 1)]
+        parallel: usize,
         /// Submit the runs to this server as a group of jobs instead of running locally.
         #[arg(long, env = "MPM_SERVER")]
         server: Option<String>,
@@ -406,6 +409,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             scene,
             vary,
             out,
+            parallel,
             server,
             token,
         } => {
@@ -427,7 +431,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                     let remote = crate::client::Remote { server, token };
                     crate::study::run_remote(&scene, &vars, &remote, report)?
                 }
-                None => crate::study::run_local(&scene, &vars, &registry, report),
+                None => crate::study::run_local(&scene, &vars, &registry, parallel, report),
             };
             let dir = out.unwrap_or_else(|| crate::study::default_dir(&scene));
             crate::study::write_tables(&dir, &vars, &rows)?;

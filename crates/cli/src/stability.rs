@@ -78,9 +78,9 @@ fn contrast(ratio: f64) -> Value {
     })
 }
 
-/// A block squeezed under gravity on the floor, Poisson ratio `nu`.
-fn near_incompressible(nu: f64) -> Value {
-    json!({
+/// A block squeezed under gravity on the floor, Poisson ratio `nu`, with or without F-bar.
+fn near_incompressible(nu: f64, fbar: bool) -> Value {
+    let mut s = json!({
         "name": "incompressible", "dimension": 2,
         "domain": {"min": [0, 0], "max": [1, 0.5], "cell_size": 0.025,
                    "walls": [{"sides": ["y-"], "condition": "stick"}]},
@@ -88,7 +88,11 @@ fn near_incompressible(nu: f64) -> Value {
         "materials": {"rubber": elastic("neo_hookean", 1e5, nu, 1000.0)},
         "bodies": [{"material": "rubber", "shape": {"box": {"min": [0.3, 0.0], "max": [0.7, 0.2]}}}],
         "output": {"frames": 1, "fields": ["x"]}
-    })
+    });
+    if fbar {
+        s["solver"]["anti_locking"] = json!("fbar");
+    }
+    s
 }
 
 /// The vibrating bar with a fixed time step `factor` times its stable one, allowing
@@ -176,13 +180,25 @@ pub fn cases() -> Vec<Case> {
         Case {
             name: "nu-0.49",
             what: "block under gravity, nu = 0.49",
-            scene: near_incompressible(0.49),
+            scene: near_incompressible(0.49, false),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "nu-0.49-fbar",
+            what: "block under gravity, nu = 0.49, F-bar",
+            scene: near_incompressible(0.49, true),
             expected: Expected::Finished,
         },
         Case {
             name: "nu-0.499",
             what: "block under gravity, nu = 0.499",
-            scene: near_incompressible(0.499),
+            scene: near_incompressible(0.499, false),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "nu-0.499-fbar",
+            what: "block under gravity, nu = 0.499, F-bar",
+            scene: near_incompressible(0.499, true),
             expected: Expected::Finished,
         },
         Case {

@@ -125,48 +125,65 @@ fn failed_row(labels: Vec<(String, String)>, outcome: &str, message: String) -> 
     }
 }
 
-/// Runs every combination locally, one after the other (each run uses every core, so wall
-/// times are comparable).
+/// Runs every combination locally, `parallel` runs at a time (1: one after the other, each
+/// with every core, so wall times compare; more: runs share the cores).
 pub fn run_local(
     scene: &Path,
     vars: &[Variation],
     registry: &Registry,
-    progress: impl Fn(usize, usize, &[(String, String)]),
+    parallel: usize,
+    progress: impl Fn(usize, usize, &[(String, String)]) + Sync,
 ) -> Vec<StudyRow> {
     let combos = combinations(vars);
     let total = combos.len();
-    combos
-        .into_iter()
-        .enumerate()
-        .map(|(i, (sets, labels))| {
-            progress(i, total, &labels);
-            let validated = match crate::load_scene(scene, &sets, registry) {
-                Ok(v) => v,
-                Err(crate::LoadError::Invalid(e)) => {
-                    return failed_row(labels, "invalid", e.to_string());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let rows: Vec<std::sync::Mutex<Option<StudyRow>>> =
+        (0..total).map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..parallel.clamp(1, total.max(1)) {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some((sets, labels)) = combos.get(i) else {
+                        break;
+                    };
+                    progress(i, total, labels);
+                    let row = run_one(scene, sets, labels.clone(), registry);
+                    *rows[i].lock().expect("study row lock") = Some(row);
                 }
-                Err(crate::LoadError::Io(e)) => {
-                    return failed_row(labels, "failed", format!("{e:#}"));
-                }
-            };
-            let result = mpm_core::solver::run_scene(
-                &validated,
-                &mut mpm_core::output::NullSink,
-                &mut |_: &mpm_core::solver::Progress| mpm_core::solver::Control::Continue,
-            );
-            match result {
-                Ok(m) => {
-                    let mut row =
-                        row_from_metrics(labels, &serde_json::to_value(&m).unwrap_or_default());
-                    if m.outcome == Some(Outcome::Finished) {
-                        row.message = None;
-                    }
-                    row
-                }
-                Err(e) => failed_row(labels, "invalid", e.to_string()),
-            }
+            });
+        }
+    });
+    rows.into_iter()
+        .map(|r| {
+            r.into_inner()
+                .expect("study row lock")
+                .expect("every run recorded")
         })
         .collect()
+}
+
+fn run_one(scene: &Path, sets: &[String], labels: Labels, registry: &Registry) -> StudyRow {
+    let validated = match crate::load_scene(scene, sets, registry) {
+        Ok(v) => v,
+        Err(crate::LoadError::Invalid(e)) => return failed_row(labels, "invalid", e.to_string()),
+        Err(crate::LoadError::Io(e)) => return failed_row(labels, "failed", format!("{e:#}")),
+    };
+    let result = mpm_core::solver::run_scene(
+        &validated,
+        &mut mpm_core::output::NullSink,
+        &mut |_: &mpm_core::solver::Progress| mpm_core::solver::Control::Continue,
+    );
+    match result {
+        Ok(m) => {
+            let mut row = row_from_metrics(labels, &serde_json::to_value(&m).unwrap_or_default());
+            if m.outcome == Some(Outcome::Finished) {
+                row.message = None;
+            }
+            row
+        }
+        Err(e) => failed_row(labels, "invalid", e.to_string()),
+    }
 }
 
 /// Submits every combination to a server as a group of jobs, waits, and reads the metrics.

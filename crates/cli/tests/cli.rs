@@ -279,6 +279,8 @@ fn study_writes_table_and_plot_with_the_observed_order() {
             "transfer=pic,apic",
             "--vary",
             "solver.mls=false,true",
+            "--parallel",
+            "2",
             "--out",
             "st",
         ],

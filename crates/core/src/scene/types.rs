@@ -203,6 +203,27 @@ pub struct Solver {
     /// Reorder particles by cell every this many steps, for memory locality (0 = never).
     #[serde(default = "default_sort_interval")]
     pub sort_interval: u32,
+    /// Volumetric anti-locking for near-incompressible materials.
+    #[serde(default, skip_serializing_if = "AntiLocking::is_none")]
+    pub anti_locking: AntiLocking,
+}
+
+/// Volumetric anti-locking options.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AntiLocking {
+    /// Each particle keeps its own volume change.
+    #[default]
+    None,
+    /// F-bar: the volume change is averaged over the neighbouring grid nodes.
+    Fbar,
+}
+
+impl AntiLocking {
+    /// Whether no anti-locking is asked for.
+    pub fn is_none(&self) -> bool {
+        *self == AntiLocking::None
+    }
 }
 
 fn default_kernel() -> KernelName {

@@ -13,6 +13,7 @@ mod stats;
 mod stencil;
 mod stress_update;
 mod timestep;
+mod volume_averaging;
 
 use crate::boundary::Boundaries;
 use crate::grid::Grid;
@@ -33,6 +34,7 @@ use particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
 use stats::{KinematicStats, ParticleFault};
 use std::time::Instant;
 use stress_update::{StressStats, update_stress};
+use volume_averaging::VolumeAverage;
 
 pub use timestep::stable_time_step;
 
@@ -147,6 +149,7 @@ pub struct Simulation<const D: usize, K: Kernel> {
     kinematics: KinematicStats<D>,
     stresses: StressStats,
     boundary_work: f64,
+    volume_average: Option<VolumeAverage>,
     _kernel: std::marker::PhantomData<K>,
 }
 
@@ -249,7 +252,9 @@ where
         let grid = Grid::new(min, cells, dx, flip);
 
         let reference = s.reference.clone().map(ReferenceTracker::new);
-        let needs_gradient = v.materials.values().any(|m| m.needs_velocity_gradient());
+        // F-bar averages this step's volume change, which it reads from the gradient.
+        let needs_gradient = v.materials.values().any(|m| m.needs_velocity_gradient())
+            || s.solver.anti_locking == crate::scene::AntiLocking::Fbar;
         let n = v.particle_count();
         let alloc_if = |yes: bool| if yes { n } else { 0 };
         let mut particles = Particles::<D> {
@@ -358,6 +363,7 @@ where
             min_dt: s.stop.min_dt,
         };
         let bins = SlabBins::new(grid.nodes[0], K::SPAN, n);
+        let grid_nodes = grid.len();
         Self {
             boundaries: Boundaries::new(&s.domain.walls, &s.obstacles, domain_cells),
             grid,
@@ -375,6 +381,8 @@ where
             kinematics: KinematicStats::default(),
             stresses: StressStats::default(),
             boundary_work: 0.0,
+            volume_average: (s.solver.anti_locking == crate::scene::AntiLocking::Fbar)
+                .then(|| VolumeAverage::new(grid_nodes)),
             _kernel: std::marker::PhantomData,
         }
     }
@@ -475,6 +483,17 @@ where
         }
     }
 
+    /// F-bar: averages J over the grid before the stress update (when the scene asks).
+    /// `moved`: particles moved since the bins were built, so rebuild them.
+    fn average_volume(&mut self, moved: bool, dt: f64) {
+        if let Some(average) = &mut self.volume_average {
+            if moved {
+                self.bins.rebuild::<D, K>(&self.grid, &self.particles);
+            }
+            average.apply::<D, K>(&self.grid, &mut self.particles, &self.bins, dt);
+        }
+    }
+
     /// Advances one step of size `dt` with the scene's update scheme.
     pub fn step(&mut self, dt: f64) {
         let sort = self.settings.sort_interval;
@@ -493,12 +512,14 @@ where
                 self.p2g(dt, true, force);
                 self.grid_update(dt, true);
                 self.g2p(dt, true, true, true);
+                self.average_volume(true, dt);
                 self.stresses = update_stress(&mut self.particles, dt);
             }
             Scheme::Usf => {
                 self.p2g(dt, true, ForceTerm::None);
                 self.grid_update(dt, false);
                 self.g2p(dt, false, false, true);
+                self.average_volume(false, dt);
                 self.stresses = update_stress(&mut self.particles, dt);
                 self.grid.clear();
                 self.p2g(dt, true, force);
@@ -516,6 +537,7 @@ where
                 let velocity_stats = self.kinematics;
                 self.g2p(dt, false, true, true);
                 self.kinematics.kinetic_energy = velocity_stats.kinetic_energy;
+                self.average_volume(true, dt);
                 self.stresses = update_stress(&mut self.particles, dt);
             }
         }
@@ -774,7 +796,8 @@ where
                 0.0
             },
             bytes_per_particle: self.particles.bytes_per_particle(),
-            grid_bytes: self.grid.bytes(),
+            grid_bytes: self.grid.bytes()
+                + self.volume_average.as_ref().map_or(0, VolumeAverage::bytes),
             energy_drift: drift,
             max_energy_drift: max_drift,
             error: self.reference.as_ref().and_then(|r| r.error()),
