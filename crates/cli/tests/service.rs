@@ -395,13 +395,7 @@ fn a_killed_server_resumes_its_jobs_with_the_same_results() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_scene(dir.path(), "scene.json", &scene);
     let local_store = dir.path().join("local.zarr");
-    let mut sink = mpm_io::ZarrSink::new(&local_store);
-    let metrics = mpm_core::solver::run_scene(
-        &load(&path, &[]),
-        &mut sink,
-        &mut |_: &mpm_core::solver::Progress| mpm_core::solver::Control::Continue,
-    )
-    .unwrap();
+    let metrics = run_to_store(&load(&path, &[]), &local_store);
     assert_eq!(done["metrics"]["error"].as_f64(), metrics.error);
     let remote: PathBuf = data.path().join("jobs").join(&id).join("results.zarr");
     let (a, b) = (

@@ -182,13 +182,7 @@ fn coulomb_friction_decelerates_a_sliding_block_at_mu_g() {
         let path = write_scene(dir.path(), "slide.json", &sliding_block(floor));
         let scene = load(&path, &[]);
         let store = dir.path().join("slide.zarr");
-        let mut sink = mpm_io::ZarrSink::new(&store);
-        let m = mpm_core::solver::run_scene(
-            &scene,
-            &mut sink,
-            &mut |_: &mpm_core::solver::Progress| mpm_core::solver::Control::Continue,
-        )
-        .unwrap();
+        let m = run_to_store(&scene, &store);
         assert_eq!(m.outcome, Some(Outcome::Finished), "{floor}");
         for frame in 1..=4u64 {
             let t = 0.05 * frame as f64;
@@ -214,13 +208,7 @@ fn a_moving_stick_obstacle_carries_the_body_with_it() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_scene(dir.path(), "lift.json", &scene);
     let store = dir.path().join("slide.zarr");
-    let mut sink = mpm_io::ZarrSink::new(&store);
-    let m = mpm_core::solver::run_scene(
-        &load(&path, &[]),
-        &mut sink,
-        &mut |_: &mpm_core::solver::Progress| mpm_core::solver::Control::Continue,
-    )
-    .unwrap();
+    let m = run_to_store(&load(&path, &[]), &store);
     // The plane does work on the block; the energy balance accounts for it, so the run is
     // not stopped for energy growth.
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);

@@ -29,6 +29,12 @@ pub fn run(scene: &ValidatedScene) -> Metrics {
     run_scene(scene, &mut NullSink, &mut |_: &Progress| Control::Continue).expect("run")
 }
 
+/// Runs a scene and writes its results to a Zarr store at `store`.
+pub fn run_to_store(scene: &ValidatedScene, store: &Path) -> Metrics {
+    let mut sink = mpm_io::ZarrSink::new(store);
+    run_scene(scene, &mut sink, &mut |_: &Progress| Control::Continue).expect("run")
+}
+
 /// Writes a JSON scene to a file in `dir` and returns its path.
 pub fn write_scene(dir: &Path, name: &str, scene: &serde_json::Value) -> PathBuf {
     let path = dir.join(name);
