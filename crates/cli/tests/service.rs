@@ -65,13 +65,13 @@ fn submit(url: &str, scene: &Value) -> reqwest::blocking::Response {
         .unwrap()
 }
 
+/// GET a URL and read its JSON body.
+fn get_json(url: &str) -> Value {
+    client().get(url).send().unwrap().json().unwrap()
+}
+
 fn job(url: &str, id: &str) -> Value {
-    client()
-        .get(format!("{url}/v1/jobs/{id}"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap()
+    get_json(&format!("{url}/v1/jobs/{id}"))
 }
 
 fn wait_final(url: &str, id: &str, limit: Duration) -> Value {
@@ -142,12 +142,7 @@ fn submit_watch_fetch_and_compare_with_a_local_run() {
     assert_eq!(store.frame_count().unwrap(), 41);
 
     // Listing with a status filter.
-    let list: Value = client()
-        .get(format!("{}/v1/jobs?status=succeeded", server.url))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let list: Value = get_json(&format!("{}/v1/jobs?status=succeeded", server.url));
     assert_eq!(list["total"], 1);
 }
 
@@ -445,12 +440,7 @@ fn a_burst_of_100_concurrent_jobs_all_finish_once() {
         }
     }
     let total = start.elapsed();
-    let list: Value = client()
-        .get(format!("{url}/v1/jobs?limit=1000"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let list: Value = get_json(&format!("{url}/v1/jobs?limit=1000"));
     assert_eq!(list["total"], 100, "none lost, none duplicated");
     let attempts: i64 = list["jobs"]
         .as_array()
@@ -609,11 +599,6 @@ fn a_study_runs_as_a_group_of_jobs_on_the_server() {
         local.error,
         "the server's run equals the local one"
     );
-    let list: Value = client()
-        .get(format!("{}/v1/jobs", server.url))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let list: Value = get_json(&format!("{}/v1/jobs", server.url));
     assert_eq!(list["total"], 2);
 }
