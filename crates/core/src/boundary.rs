@@ -18,6 +18,10 @@ pub fn apply_contact<const D: usize>(v: &mut Vector<D>, n: &Vector<D>, contact: 
                 *v -= n * vn;
             }
         }
+        Contact::Symmetry => {
+            let vn = v.dot(n);
+            *v -= n * vn;
+        }
         Contact::Friction { coefficient } => {
             let vn = v.dot(n);
             if vn < 0.0 {
@@ -261,9 +265,19 @@ impl<const D: usize> Boundaries<D> {
 }
 
 impl<const D: usize> Boundaries<D> {
-    /// Visits each stick wall's (ghost, front) node-plane pairs, nearest the surface first.
-    fn stick_wall_planes(&self, nodes: [usize; 3], mut f: impl FnMut(usize, usize, usize)) {
-        for wall in self.walls.iter().filter(|w| w.contact == Contact::Stick) {
+    /// Visits each stick or symmetry wall's (ghost, front) node-plane pairs, nearest the
+    /// surface first, with whether the wall is a symmetry plane.
+    fn mirrored_wall_planes(
+        &self,
+        nodes: [usize; 3],
+        mut f: impl FnMut(usize, usize, usize, bool),
+    ) {
+        for wall in self
+            .walls
+            .iter()
+            .filter(|w| matches!(w.contact, Contact::Stick | Contact::Symmetry))
+        {
+            let symmetry = wall.contact == Contact::Symmetry;
             let a = wall.axis;
             let n = nodes[a];
             let s = wall.surface;
@@ -275,18 +289,28 @@ impl<const D: usize> Boundaries<D> {
                     (s - k, (s + k < n).then_some(s + k))
                 };
                 let Some(front) = front else { break };
-                f(a, ghost, front);
+                f(a, ghost, front, symmetry);
             }
         }
     }
 
-    /// Folds what P2G put on the ghost nodes behind each stick wall onto their mirror
-    /// nodes, odd in momentum and force: m(s+k) += m(s−k), p(s+k) −= p(s−k). This is P2G of
-    /// the mirror image of the body (velocities negated), so the clamped body moves exactly
-    /// like half of a free body twice its size: second-order accurate with any kernel.
+    /// Folds what P2G put on the ghost nodes behind each stick or symmetry wall onto their
+    /// mirror nodes: m(s+k) += m(s−k), and the momentum (and force) of the mirror image of
+    /// the body: negated for a stick wall (the image moves opposite, so the wall holds
+    /// still), reflected for a symmetry wall (normal component negated). This is P2G of the
+    /// body plus its image, so a clamped body moves like half of a free body twice its size
+    /// and a symmetric half model like the full one: second-order accurate with any kernel.
     pub fn fold_stick_walls(&self, grid: &mut crate::grid::Grid<D>) {
         let flip = !grid.force.is_empty();
-        self.stick_wall_planes(grid.nodes, |a, ghost, front| {
+        self.mirrored_wall_planes(grid.nodes, |a, ghost, front, symmetry| {
+            let image = |mut p: Vector<D>| {
+                if symmetry {
+                    p[a] = -p[a];
+                    p
+                } else {
+                    -p
+                }
+            };
             for_each_node_in_plane(grid.nodes, a, ghost, |ijk_ghost| {
                 let mut ijk_front = ijk_ghost;
                 ijk_front[a] = front;
@@ -296,28 +320,34 @@ impl<const D: usize> Boundaries<D> {
                 // mirror after the update.
                 grid.mass[g] = 0.0;
                 let p = grid.momentum[g];
-                grid.momentum[f] -= p;
+                grid.momentum[f] += image(p);
                 if flip {
                     let force = grid.force[g];
-                    grid.force[f] -= force;
+                    grid.force[f] += image(force);
                 }
             });
         });
     }
 
     /// Gives the ghost nodes behind every stick wall the mirror image of the velocity in
-    /// front of it, negated: v(s − k) = −v(s + k). The velocity field is then odd about the
-    /// wall surface and vanishes exactly there, which keeps non-interpolating kernels
-    /// (B-splines, GIMP) second-order accurate at a clamped boundary; zeroing the wall nodes
-    /// alone shifts the effective clamp by a fraction of a cell.
+    /// front of it, negated: v(s − k) = −v(s + k); behind a symmetry wall, reflected (normal
+    /// component negated). The velocity field is then odd (or mirror-symmetric) about the
+    /// wall surface, which keeps non-interpolating kernels (B-splines, GIMP) second-order
+    /// accurate at the wall; zeroing the wall nodes alone shifts the effective clamp by a
+    /// fraction of a cell.
     pub fn mirror_stick_walls(&self, grid: &mut crate::grid::Grid<D>) {
-        self.stick_wall_planes(grid.nodes, |a, ghost, front| {
+        self.mirrored_wall_planes(grid.nodes, |a, ghost, front, symmetry| {
             for_each_node_in_plane(grid.nodes, a, ghost, |ijk_ghost| {
                 let mut ijk_front = ijk_ghost;
                 ijk_front[a] = front;
-                let value = grid.momentum[grid.index(ijk_front)];
+                let mut value = grid.momentum[grid.index(ijk_front)];
+                if symmetry {
+                    value[a] = -value[a];
+                } else {
+                    value = -value;
+                }
                 let g = grid.index(ijk_ghost);
-                grid.momentum[g] = -value;
+                grid.momentum[g] = value;
             });
         });
     }

@@ -8,7 +8,7 @@ pub const MAX_STATE_FIELDS: usize = 8;
 
 /// A per-particle field a material keeps between steps (plastic strain, damage, ...).
 /// The core allocates it only for the particles of that material.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FieldSpec {
     /// Name, also used as the output field name.
     pub name: &'static str,
@@ -19,12 +19,17 @@ pub struct FieldSpec {
 }
 
 /// Initial value of a state field.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FieldInit {
     /// All zeros.
     Zero,
     /// The identity matrix (for a field of `D*D` components).
     Identity,
+    /// The same number in every component (an initial temperature, say).
+    Constant(f64),
+    /// These numbers, one per component (a 3×3 identity in a 2D law that tracks the
+    /// out-of-plane direction, say).
+    Values(&'static [f64]),
 }
 
 /// The state fields of one batch, in the order the material declared them; each slice holds

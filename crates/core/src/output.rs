@@ -121,6 +121,19 @@ pub struct Diagnostic {
     pub message: String,
 }
 
+/// One quantity of a run compared with its reference value.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Comparison {
+    /// What is compared (`final_length`).
+    pub quantity: String,
+    /// Value from the run.
+    pub measured: f64,
+    /// Reference (published or closed-form) value.
+    pub reference: f64,
+    /// (measured − reference) / reference.
+    pub relative_difference: f64,
+}
+
 /// Figures of a finished (or stopped) run; stored as the result store's `metrics` attribute.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Metrics {
@@ -157,6 +170,9 @@ pub struct Metrics {
     pub reference_value: Option<f64>,
     /// See `reference_value`.
     pub measured_value: Option<f64>,
+    /// Further quantities compared with the reference (Taylor bar: length, diameter,
+    /// peak plastic strain).
+    pub comparisons: Vec<Comparison>,
     /// Smallest det F seen.
     pub min_det_f: f64,
     /// Largest particle speed seen, m/s.

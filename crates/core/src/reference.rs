@@ -1,6 +1,7 @@
 //! Reference solutions a run measures its error against (closed forms and a shooting solve).
 
 use crate::math::Vector;
+use crate::output::Comparison;
 use crate::particles::Particles;
 use crate::scene::Reference;
 use std::f64::consts::PI;
@@ -12,6 +13,7 @@ pub struct ReferenceTracker {
     denominator: f64,
     measured: Option<f64>,
     expected: Option<f64>,
+    comparisons: Vec<Comparison>,
 }
 
 impl ReferenceTracker {
@@ -33,6 +35,7 @@ impl ReferenceTracker {
                 let alpha = load * length.powi(3) / (e_plane * inertia);
                 Some(heavy_elastica_tip_deflection(alpha) * length)
             }
+            Reference::TaylorBar { final_length, .. } => Some(*final_length),
             _ => None,
         };
         Self {
@@ -41,6 +44,7 @@ impl ReferenceTracker {
             denominator: 0.0,
             measured: None,
             expected,
+            comparisons: Vec::new(),
         }
     }
 
@@ -53,12 +57,15 @@ impl ReferenceTracker {
             Reference::CantileverElastica { .. } => {
                 "relative error of the tip deflection at the end time against the heavy elastica"
             }
+            Reference::TaylorBar { .. } => {
+                "relative error of the final bar length against the published Taylor impact value"
+            }
         }
     }
 
     /// Whether the tracker needs each particle's initial position.
     pub fn needs_initial_positions(&self) -> bool {
-        true
+        !matches!(self.reference, Reference::TaylorBar { .. })
     }
 
     /// Takes one output frame into account.
@@ -110,7 +117,44 @@ impl ReferenceTracker {
                 }
                 self.measured = Some(sum / count.max(1) as f64);
             }
+            Reference::TaylorBar {
+                axis,
+                wall,
+                ref center,
+                final_length,
+                mushroom_diameter,
+                peak_plastic_strain,
+                ..
+            } => {
+                if !last {
+                    return;
+                }
+                let shape = taylor_bar_shape(particles, axis, wall, center);
+                self.measured = Some(shape.length);
+                let mut compare = |quantity: &str, measured: f64, reference: f64| {
+                    self.comparisons.push(Comparison {
+                        quantity: quantity.into(),
+                        measured,
+                        reference,
+                        relative_difference: (measured - reference) / reference,
+                    })
+                };
+                compare("final_length", shape.length, final_length);
+                compare(
+                    "mushroom_diameter",
+                    shape.impact_diameter,
+                    mushroom_diameter,
+                );
+                if let Some(e) = peak_plastic_strain {
+                    compare("peak_plastic_strain", shape.peak_plastic_strain, e);
+                }
+            }
         }
+    }
+
+    /// Further quantities compared with the reference (empty for most references).
+    pub fn comparisons(&self) -> Vec<Comparison> {
+        self.comparisons.clone()
     }
 
     /// The error so far (`None` before anything was observed).
@@ -119,7 +163,7 @@ impl ReferenceTracker {
             Reference::VibratingBar { .. } => {
                 (self.denominator > 0.0).then(|| (self.numerator / self.denominator).sqrt())
             }
-            Reference::CantileverElastica { .. } => {
+            Reference::CantileverElastica { .. } | Reference::TaylorBar { .. } => {
                 let (m, e) = (self.measured?, self.expected?);
                 Some((m - e).abs() / e.abs())
             }
@@ -134,6 +178,62 @@ impl ReferenceTracker {
     /// Measured value, where the error compares two numbers.
     pub fn measured(&self) -> Option<f64> {
         self.measured
+    }
+}
+
+/// Measured shape of an impacted bar.
+struct BarShape {
+    length: f64,
+    impact_diameter: f64,
+    peak_plastic_strain: f64,
+}
+
+/// Length, impact-face diameter and peak plastic strain of a bar standing on a wall.
+///
+/// Particle centres sit half a particle spacing inside the surface, so half the spacing
+/// (from the particle's reference volume) is added at each measured surface. The impact
+/// face is the particles within one spacing of the lowest one, and the length is measured
+/// from there, so a bar that has rebounded off the wall measures true. The plastic strain is the state
+/// field `plastic_strain` of whichever material has one (0 when none does).
+fn taylor_bar_shape<const D: usize>(
+    particles: &Particles<D>,
+    axis: usize,
+    wall: f64,
+    center: &[f64],
+) -> BarShape {
+    let mut far = 0.0f64;
+    let mut radius = 0.0f64;
+    // The bar may have rebounded off the wall: the impact face is its lowest layer.
+    let lowest = (0..particles.len())
+        .map(|p| (particles.position[p][axis] - wall).abs())
+        .fold(f64::INFINITY, f64::min);
+    for p in 0..particles.len() {
+        let x = particles.position[p];
+        let half = 0.5 * particles.volume0[p].powf(1.0 / D as f64);
+        let height = (x[axis] - wall).abs();
+        far = far.max(height - lowest + 2.0 * half);
+        if height - lowest < 2.0 * half {
+            let mut r2 = 0.0;
+            for (k, d) in (0..D).filter(|&d| d != axis).enumerate() {
+                r2 += (x[d] - center.get(k).copied().unwrap_or(0.0)).powi(2);
+            }
+            radius = radius.max(r2.sqrt() + half);
+        }
+    }
+    let mut peak = 0.0f64;
+    for group in &particles.groups {
+        let specs = group.material.state_fields();
+        if let Some(f) = specs.iter().position(|s| s.name == "plastic_strain") {
+            let c = specs[f].components;
+            for value in group.state[f].iter().step_by(c) {
+                peak = peak.max(*value);
+            }
+        }
+    }
+    BarShape {
+        length: far,
+        impact_diameter: 2.0 * radius,
+        peak_plastic_strain: peak,
     }
 }
 

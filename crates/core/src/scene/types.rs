@@ -124,6 +124,10 @@ pub enum Contact {
         /// Coulomb friction coefficient (>= 0).
         coefficient: f64,
     },
+    /// A mirror plane (walls only): the body behaves as half of a body symmetric about the
+    /// wall, so a half or quarter model gives the full model's answer. Unlike `slip` it
+    /// holds the body in both directions and mirrors the grid behind the wall.
+    Symmetry,
 }
 
 /// Kernel (shape function) names as used in scenes.
@@ -265,6 +269,10 @@ pub struct Body {
     /// Initial velocity.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity: Option<InitialVelocity>,
+    /// Keep only the particles inside the domain instead of refusing the scene; for
+    /// symmetry models, where a slip wall on a domain face cuts the shape in half.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub clip_to_domain: bool,
 }
 
 fn default_ppc() -> u32 {
@@ -500,5 +508,26 @@ pub enum Reference {
         density: f64,
         /// Gravity magnitude, m/s².
         gravity: f64,
+    },
+    /// Taylor impact: a bar hits a rigid wall; the run compares its final length, the
+    /// diameter of its impact face (mushroom) and its peak plastic strain with published
+    /// values; error: relative error of the final length.
+    TaylorBar {
+        /// Axis of the bar (the impact direction).
+        axis: usize,
+        /// Coordinate of the wall along the axis.
+        wall: f64,
+        /// Coordinates of the bar's centre line in the other directions, in axis order
+        /// (a quarter-symmetry model puts it on the symmetry planes).
+        center: Vec<f64>,
+        /// Published final length, m.
+        final_length: f64,
+        /// Published final diameter of the impact face, m.
+        mushroom_diameter: f64,
+        /// Published peak equivalent plastic strain, if given.
+        #[serde(default)]
+        peak_plastic_strain: Option<f64>,
+        /// Where the published values come from.
+        source: String,
     },
 }

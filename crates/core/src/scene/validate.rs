@@ -417,6 +417,12 @@ impl Validator {
             }
         }
         self.check_contact(&format!("{path}.condition"), o.condition);
+        if o.condition == Contact::Symmetry {
+            self.err(
+                format!("{path}.condition"),
+                "symmetry applies to walls on the domain faces only",
+            );
+        }
         if let Some(v) = &o.velocity {
             self.vector(&format!("{path}.velocity"), v);
         }
@@ -465,6 +471,33 @@ impl Validator {
                 self.positive("reference.gravity", *gravity);
                 if !(*poisson_ratio > -1.0 && *poisson_ratio < 0.5) {
                     self.err("reference.poisson_ratio", "must be in (-1, 0.5)");
+                }
+            }
+            Reference::TaylorBar {
+                axis,
+                wall,
+                center,
+                final_length,
+                mushroom_diameter,
+                peak_plastic_strain,
+                ..
+            } => {
+                if *axis >= self.dim {
+                    self.err("reference.axis", format!("must be below {}", self.dim));
+                }
+                if !wall.is_finite() {
+                    self.err("reference.wall", "must be finite");
+                }
+                if center.len() != self.dim - 1 || !center.iter().all(|c| c.is_finite()) {
+                    self.err(
+                        "reference.center",
+                        format!("must hold {} finite numbers", self.dim - 1),
+                    );
+                }
+                self.positive("reference.final_length", *final_length);
+                self.positive("reference.mushroom_diameter", *mushroom_diameter);
+                if let Some(e) = peak_plastic_strain {
+                    self.positive("reference.peak_plastic_strain", *e);
                 }
             }
         }
@@ -551,7 +584,7 @@ impl Validator {
             match &b.shape {
                 Shape::Box { min, max } => fill_box(dim, min, max, h, &mut body),
                 Shape::Sphere { center, radius } => {
-                    fill_lattice(dim, center, *radius, h, &mut body, |r| {
+                    fill_lattice(dim, center, *radius, h, [0.5; 3], &mut body, |r| {
                         r.iter().map(|x| x * x).sum::<f64>() <= radius * radius
                     })
                 }
@@ -564,7 +597,16 @@ impl Validator {
                     let norm = axis.iter().map(|x| x * x).sum::<f64>().sqrt();
                     let a: Vec<f64> = axis.iter().map(|x| x / norm).collect();
                     let reach = (radius * radius + length * length / 4.0).sqrt();
-                    fill_lattice(dim, center, reach, h, &mut body, |r| {
+                    // Along a coordinate axis, fit the layers to the length exactly: an odd
+                    // number of layers puts one on the centre, an even number straddles it.
+                    let mut offset = [0.5; 3];
+                    if let Some(k) = a.iter().position(|x| (x.abs() - 1.0).abs() < 1e-12) {
+                        let layers = (length / h).round() as i64;
+                        if layers % 2 == 1 && ((layers as f64) * h - length).abs() < 1e-9 * length {
+                            offset[k] = 0.0;
+                        }
+                    }
+                    fill_lattice(dim, center, reach, h, offset, &mut body, |r| {
                         let along: f64 = r.iter().zip(&a).map(|(x, y)| x * y).sum();
                         let r2: f64 = r.iter().map(|x| x * x).sum::<f64>() - along * along;
                         along.abs() <= length / 2.0 && r2 <= radius * radius
@@ -587,6 +629,25 @@ impl Validator {
                         }
                     }
                 }
+            }
+            if b.clip_to_domain {
+                let keep: Vec<bool> = body
+                    .positions
+                    .chunks_exact(dim)
+                    .map(|x| (0..dim).all(|a| x[a] >= s.domain.min[a] && x[a] <= s.domain.max[a]))
+                    .collect();
+                let mut k = 0;
+                body.positions.retain(|_| {
+                    let inside = keep[k / dim];
+                    k += 1;
+                    inside
+                });
+                let mut k = 0;
+                body.volumes.retain(|_| {
+                    let inside = keep[k];
+                    k += 1;
+                    inside
+                });
             }
             let n = body.volumes.len();
             if n == 0 {
@@ -665,6 +726,7 @@ fn fill_lattice(
     center: &[f64],
     reach: f64,
     h: f64,
+    offset: [f64; 3],
     body: &mut BodyParticles,
     inside: impl Fn(&[f64]) -> bool,
 ) {
@@ -677,7 +739,7 @@ fn fill_lattice(
             for k in range(2) {
                 let idx = [i, j, k];
                 for a in 0..dim {
-                    r[a] = (idx[a] as f64 + 0.5) * h;
+                    r[a] = (idx[a] as f64 + offset[a]) * h;
                 }
                 if inside(&r) {
                     for a in 0..dim {

@@ -322,11 +322,23 @@ where
                 .state_fields()
                 .iter()
                 .map(|spec| {
-                    let mut field = vec![0.0; count * spec.components];
-                    if spec.initial == FieldInit::Identity {
-                        for p in 0..count {
-                            for d in 0..D {
-                                field[p * spec.components + d * D + d] = 1.0;
+                    let c = spec.components;
+                    let mut field = vec![0.0; count * c];
+                    match spec.initial {
+                        FieldInit::Zero => {}
+                        FieldInit::Identity => {
+                            for p in 0..count {
+                                for d in 0..D {
+                                    field[p * c + d * D + d] = 1.0;
+                                }
+                            }
+                        }
+                        FieldInit::Constant(value) => field.fill(value),
+                        FieldInit::Values(values) => {
+                            for chunk in field.chunks_exact_mut(c) {
+                                for (x, v) in chunk.iter_mut().zip(values) {
+                                    *x = *v;
+                                }
                             }
                         }
                     }
@@ -804,6 +816,10 @@ where
             error_kind: self.reference.as_ref().map(|r| r.kind().to_string()),
             reference_value: self.reference.as_ref().and_then(|r| r.expected()),
             measured_value: self.reference.as_ref().and_then(|r| r.measured()),
+            comparisons: self
+                .reference
+                .as_ref()
+                .map_or_else(Vec::new, |r| r.comparisons()),
             min_det_f: min_det,
             max_speed,
             max_momentum,
