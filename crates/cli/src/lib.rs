@@ -21,6 +21,9 @@ pub fn default_registry() -> Registry {
     registry
         .register(Box::new(mpm_elastic::ElasticPlugin))
         .expect("built-in plugins have distinct names");
+    registry
+        .register(Box::new(mpm_johnson_cook::JohnsonCookPlugin))
+        .expect("built-in plugins have distinct names");
     registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
     registry
 }

@@ -1,0 +1,52 @@
+//! Johnson–Cook damage: D grows by Δεₚ/ε_f with the failure strain
+//! ε_f = [D1 + D2 exp(D3 σ*)][1 + D4 ln ε̇*][1 + D5 T*].
+
+use schemars::JsonSchema;
+use serde::Deserialize;
+
+/// What a particle does once its damage reaches 1.
+#[derive(Clone, Copy, Debug, Default, Deserialize, JsonSchema, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FailureMode {
+    /// Keeps only compressive pressure: no tension and no shear (the usual choice; failed
+    /// particles still resist being pushed into each other).
+    #[default]
+    NoTension,
+    /// Carries no stress at all (debris); its mass and momentum stay in the simulation.
+    NoStress,
+}
+
+/// Johnson–Cook failure constants (D1…D5 in the literature).
+#[derive(Clone, Copy, Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Damage {
+    /// D1: failure strain offset.
+    pub d1: f64,
+    /// D2: failure strain factor of the triaxiality term.
+    pub d2: f64,
+    /// D3: triaxiality exponent (negative: tension fails sooner).
+    pub d3: f64,
+    /// D4: strain-rate factor.
+    #[serde(default)]
+    pub d4: f64,
+    /// D5: temperature factor.
+    #[serde(default)]
+    pub d5: f64,
+    /// Behaviour after failure.
+    #[serde(default)]
+    pub failure: FailureMode,
+}
+
+/// Smallest failure strain used, so that a damage increment stays finite.
+const MIN_FAILURE_STRAIN: f64 = 1e-6;
+
+impl Damage {
+    /// Failure strain at stress triaxiality `triaxiality` (mean stress over von Mises
+    /// stress), plastic strain rate ratio `rate_ratio` = ε̇/ε̇₀ and homologous temperature.
+    pub fn failure_strain(&self, triaxiality: f64, rate_ratio: f64, homologous: f64) -> f64 {
+        let stress_term = self.d1 + self.d2 * (self.d3 * triaxiality).exp();
+        let rate_term = 1.0 + self.d4 * rate_ratio.max(1.0).ln();
+        let temperature_term = 1.0 + self.d5 * homologous;
+        (stress_term * rate_term * temperature_term).max(MIN_FAILURE_STRAIN)
+    }
+}

@@ -1,0 +1,71 @@
+//! Pressure from the volume ratio J = det F: the volumetric half of the material, apart from
+//! the deviatoric plasticity.
+
+use schemars::JsonSchema;
+use serde::Deserialize;
+
+/// Equation of state of a Johnson–Cook material.
+#[derive(Clone, Copy, Debug, Default, Deserialize, JsonSchema)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum EquationOfState {
+    /// Hencky bulk response: Kirchhoff pressure −K ln J, with K from Young's modulus and
+    /// Poisson's ratio (or `bulk_modulus` when given).
+    #[default]
+    Linear,
+    /// Mie–Grüneisen with a linear shock velocity–particle velocity fit Us = c0 + s·up, for
+    /// shocks: compression follows the Hugoniot, heating adds Γ0·E.
+    MieGruneisen {
+        /// Bulk sound speed c0, m/s.
+        sound_speed: f64,
+        /// Slope s of the Us–up fit.
+        slope: f64,
+        /// Grüneisen coefficient Γ0.
+        gruneisen: f64,
+    },
+}
+
+impl EquationOfState {
+    /// Cauchy pressure (positive in compression) at volume ratio `j`, for reference density
+    /// `density`, bulk modulus `bulk` and internal energy per reference volume `energy`.
+    pub fn pressure(&self, j: f64, density: f64, bulk: f64, energy: f64) -> f64 {
+        match *self {
+            EquationOfState::Linear => -bulk * j.ln() / j,
+            EquationOfState::MieGruneisen {
+                sound_speed,
+                slope,
+                gruneisen,
+            } => {
+                let rho_c2 = density * sound_speed * sound_speed;
+                let mu = 1.0 / j - 1.0;
+                let cold = if mu > 0.0 {
+                    // Keep the Hugoniot's denominator away from its pole (1 − (s−1)μ = 0).
+                    let denominator = (1.0 - (slope - 1.0) * mu).max(0.1);
+                    rho_c2 * mu * (1.0 + (1.0 - 0.5 * gruneisen) * mu) / (denominator * denominator)
+                } else {
+                    rho_c2 * mu
+                };
+                cold + gruneisen * energy
+            }
+        }
+    }
+
+    /// Bulk modulus at zero pressure, Pa.
+    pub fn reference_bulk_modulus(&self, density: f64, bulk: f64) -> f64 {
+        match *self {
+            EquationOfState::Linear => bulk,
+            EquationOfState::MieGruneisen { sound_speed, .. } => {
+                density * sound_speed * sound_speed
+            }
+        }
+    }
+
+    /// Tangent bulk modulus −J dp/dJ at `j` (by a central difference), never below the
+    /// reference one; it sets the wave speed and so the time step.
+    pub fn tangent_bulk_modulus(&self, j: f64, density: f64, bulk: f64) -> f64 {
+        let h = 1e-6;
+        let dp = self.pressure(j * (1.0 + h), density, bulk, 0.0)
+            - self.pressure(j * (1.0 - h), density, bulk, 0.0);
+        let tangent = -dp / (2.0 * h);
+        tangent.max(self.reference_bulk_modulus(density, bulk))
+    }
+}

@@ -1,0 +1,84 @@
+//! Johnson–Cook flow stress σ_y = (A + B εₚⁿ)(1 + C ln ε̇*)(1 − T*ᵐ).
+
+use schemars::JsonSchema;
+use serde::Deserialize;
+
+/// Constants of the Johnson–Cook flow stress.
+#[derive(Clone, Copy, Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FlowStress {
+    /// A: initial yield stress at the reference rate and room temperature, Pa.
+    pub yield_stress: f64,
+    /// B: hardening modulus, Pa.
+    pub hardening_modulus: f64,
+    /// n: hardening exponent.
+    pub hardening_exponent: f64,
+    /// C: strain-rate sensitivity (dimensionless).
+    pub strain_rate_sensitivity: f64,
+    /// m: thermal softening exponent.
+    pub thermal_softening_exponent: f64,
+    /// Reference plastic strain rate ε̇₀, 1/s (rates below it count as ε̇₀).
+    #[serde(default = "one")]
+    pub reference_strain_rate: f64,
+    /// Room (reference) temperature, K: T* = (T − T_room)/(T_melt − T_room).
+    pub room_temperature: f64,
+    /// Melting temperature, K: the flow stress vanishes there.
+    pub melt_temperature: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl FlowStress {
+    /// Homologous temperature T*, clamped to [0, 1].
+    pub fn homologous_temperature(&self, temperature: f64) -> f64 {
+        ((temperature - self.room_temperature) / (self.melt_temperature - self.room_temperature))
+            .clamp(0.0, 1.0)
+    }
+
+    /// Thermal softening factor 1 − T*ᵐ.
+    pub fn thermal_factor(&self, temperature: f64) -> f64 {
+        let t = self.homologous_temperature(temperature);
+        if t <= 0.0 {
+            1.0
+        } else {
+            1.0 - t.powf(self.thermal_softening_exponent)
+        }
+    }
+
+    /// Flow stress at plastic strain `strain`, plastic strain rate `rate` and the thermal
+    /// factor from [`FlowStress::thermal_factor`], with its derivatives in strain and rate.
+    pub fn evaluate(&self, strain: f64, rate: f64, thermal: f64) -> (f64, f64, f64) {
+        let n = self.hardening_exponent;
+        let strain = strain.max(0.0);
+        let hardening = self.yield_stress + self.hardening_modulus * strain.powf(n);
+        let d_hardening = if strain > 0.0 {
+            self.hardening_modulus * n * strain.powf(n - 1.0)
+        } else if n < 1.0 {
+            f64::INFINITY
+        } else {
+            self.hardening_modulus * n * if n == 1.0 { 1.0 } else { 0.0 }
+        };
+        let ratio = rate / self.reference_strain_rate;
+        let (rate_factor, d_rate) = if ratio > 1.0 {
+            (
+                1.0 + self.strain_rate_sensitivity * ratio.ln(),
+                self.strain_rate_sensitivity / rate,
+            )
+        } else {
+            (1.0, 0.0)
+        };
+        (
+            hardening * rate_factor * thermal,
+            d_hardening * rate_factor * thermal,
+            hardening * d_rate * thermal,
+        )
+    }
+
+    /// Flow stress alone (see [`FlowStress::evaluate`]).
+    pub fn value(&self, strain: f64, rate: f64, temperature: f64) -> f64 {
+        self.evaluate(strain, rate, self.thermal_factor(temperature))
+            .0
+    }
+}

@@ -1,0 +1,244 @@
+//! The Johnson–Cook material: finite-strain J2 plasticity, multiplicative (F = Fe·Fp) with
+//! logarithmic (Hencky) elastic strain and radial return in principal stretches, a
+//! Johnson–Cook flow stress, an equation of state for the pressure, adiabatic heating, and
+//! Johnson–Cook damage with failure.
+//!
+//! Each particle keeps Fp⁻¹ as a 3×3 matrix (in 2D plane strain the out-of-plane stretch
+//! matters for J2 plasticity, so the update always runs in 3D with F_zz = 1). The trial
+//! elastic strain is ε = ½ ln(Fe Feᵀ) with Fe = F Fp⁻¹; its deviatoric part gives the trial
+//! Kirchhoff stress 2μ dev ε; the return map scales it back onto the yield surface along
+//! the same principal directions (exact for isotropic J2 in logarithmic strain); J = det F
+//! alone sets the pressure, so plastic flow is exactly isochoric.
+
+use crate::JohnsonCookParameters;
+use crate::damage::FailureMode;
+use mpm_core::material::{
+    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, StressBatch, lame_parameters,
+};
+#[cfg(test)]
+use mpm_core::math::Matrix;
+use mpm_core::math::{determinant, inverse, symmetric_eigen3};
+use nalgebra::{Matrix3, Vector3};
+
+const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+
+/// Johnson–Cook plasticity and damage (plane strain in 2D).
+#[derive(Clone, Debug)]
+pub struct JohnsonCook {
+    params: JohnsonCookParameters,
+    shear: f64,
+    bulk: f64,
+    fields: [FieldSpec; 5],
+}
+
+impl JohnsonCook {
+    /// From checked parameters.
+    pub fn new(params: JohnsonCookParameters) -> Self {
+        let (lambda, shear) = lame_parameters(params.youngs_modulus, params.poisson_ratio);
+        let bulk = lambda + 2.0 / 3.0 * shear;
+        let t0 = params.initial_temperature();
+        let scalar = |name, initial| FieldSpec {
+            name,
+            components: 1,
+            initial,
+        };
+        // Order matters: `update_stress` destructures the slices in this order.
+        let fields = [
+            scalar("plastic_strain", FieldInit::Zero),
+            scalar("damage", FieldInit::Zero),
+            scalar("temperature", FieldInit::Constant(t0)),
+            scalar("plastic_strain_rate", FieldInit::Zero),
+            FieldSpec {
+                name: "plastic_deformation_inverse",
+                components: 9,
+                initial: FieldInit::Values(&IDENTITY3),
+            },
+        ];
+        Self {
+            params,
+            shear,
+            bulk,
+            fields,
+        }
+    }
+
+    /// Plastic strain increment that brings trial von Mises (Kirchhoff) stress `q_trial`
+    /// back to the flow stress: solves q_trial − 3μΔε = σ_y(εₚ + Δε, Δε/dt, T) by Newton's
+    /// method kept inside a bracket (the left side falls, the right side rises with Δε).
+    /// Returns the increment and the flow stress reached.
+    fn return_map(&self, q_trial: f64, strain: f64, thermal: f64, dt: f64) -> (f64, f64) {
+        let flow = &self.params.flow_stress;
+        let three_mu = 3.0 * self.shear;
+        let yield0 = flow.evaluate(strain, 0.0, thermal).0;
+        // Perfectly plastic estimate: an upper bound, since the flow stress only rises.
+        let mut hi = ((q_trial - yield0) / three_mu).max(0.0);
+        let mut lo = 0.0;
+        let mut x = hi;
+        let mut stress = yield0;
+        for _ in 0..60 {
+            let (s, ds_dstrain, ds_drate) = flow.evaluate(strain + x, x / dt, thermal);
+            stress = s;
+            let g = q_trial - three_mu * x - s;
+            if g.abs() <= 1e-12 * q_trial {
+                break;
+            }
+            if g > 0.0 {
+                lo = x;
+            } else {
+                hi = x;
+            }
+            let slope = -three_mu - ds_dstrain - ds_drate / dt;
+            let mut next = x - g / slope;
+            if !(next.is_finite() && next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            x = next;
+            if hi - lo <= 1e-15 * hi {
+                break;
+            }
+        }
+        (x, stress)
+    }
+}
+
+impl ConstitutiveLaw for JohnsonCook {
+    fn density(&self) -> f64 {
+        self.params.density
+    }
+
+    fn state_fields(&self) -> &[FieldSpec] {
+        &self.fields
+    }
+
+    fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
+        let p = &self.params;
+        let (mu, bulk, rho0) = (self.shear, self.bulk, p.density);
+        let flow = &p.flow_stress;
+        let heat_per_work = p.taylor_quinney / (rho0 * p.specific_heat);
+        let t0 = p.initial_temperature();
+        let [strain_f, damage_f, temp_f, rate_f, inverse_f, ..] = batch.state.fields;
+        let mut energy = 0.0;
+        let (mut min_j, mut max_j) = (1.0f64, 1.0f64);
+        for (k, ((f, stress), v0)) in batch
+            .deformation_gradient
+            .iter()
+            .zip(batch.stress.iter_mut())
+            .zip(batch.volume0)
+            .enumerate()
+        {
+            let mut f3 = Matrix3::identity();
+            for r in 0..D {
+                for c in 0..D {
+                    f3[(r, c)] = f[(r, c)];
+                }
+            }
+            let j = determinant::<3>(&f3);
+            let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
+                // The solver stops the run at det F <= 0; leave the stress unchanged.
+                continue;
+            };
+            min_j = min_j.min(j);
+            max_j = max_j.max(j);
+            let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
+            let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
+            let fe = f3 * fp_inv;
+            let (stretch2, axes) = symmetric_eigen3(&(fe * fe.transpose()));
+            let log_strain = stretch2.map(|l| 0.5 * l.max(1e-300).ln());
+            let volumetric = log_strain.sum() / 3.0;
+            let deviatoric = log_strain.add_scalar(-volumetric);
+            let trial = deviatoric * (2.0 * mu);
+            let q_trial = (1.5 * trial.norm_squared()).sqrt();
+
+            let temperature = temp_f[k];
+            let failed = damage_f[k] >= 1.0;
+            let thermal = flow.thermal_factor(temperature);
+            let (increment, scale) = if failed {
+                (0.0, 0.0)
+            } else if q_trial > flow.evaluate(strain_f[k], 0.0, thermal).0 {
+                let (dep, _) = self.return_map(q_trial, strain_f[k], thermal, batch.dt);
+                (dep, (1.0 - 3.0 * mu * dep / q_trial).max(0.0))
+            } else {
+                (0.0, 1.0)
+            };
+            let deviatoric_stress = trial * scale;
+            let q = q_trial * scale;
+            strain_f[k] += increment;
+            rate_f[k] = increment / batch.dt;
+            let new_temperature = temperature + heat_per_work * q * increment;
+            temp_f[k] = new_temperature;
+
+            let internal_energy = rho0 * p.specific_heat * (new_temperature - t0);
+            let mut pressure = p.equation_of_state.pressure(j, rho0, bulk, internal_energy);
+            if let Some(d) = &p.damage
+                && !failed
+                && increment > 0.0
+            {
+                let triaxiality = if q > 0.0 {
+                    (-pressure * j / q).clamp(-10.0, 10.0)
+                } else {
+                    0.0
+                };
+                let strain_at_failure = d.failure_strain(
+                    triaxiality,
+                    increment / batch.dt / flow.reference_strain_rate,
+                    flow.homologous_temperature(new_temperature),
+                );
+                damage_f[k] = (damage_f[k] + increment / strain_at_failure).min(1.0);
+            }
+            let mut deviatoric_stress = deviatoric_stress;
+            if damage_f[k] >= 1.0 {
+                deviatoric_stress = Vector3::zeros();
+                let mode = p.damage.map(|d| d.failure).unwrap_or_default();
+                pressure = match mode {
+                    FailureMode::NoTension => pressure.max(0.0),
+                    FailureMode::NoStress => 0.0,
+                };
+            }
+
+            // Cauchy stress σ = τ/J, principal directions from the trial elastic strain.
+            let principal = deviatoric_stress.map(|s| s / j - pressure);
+            let sigma = axes * Matrix3::from_diagonal(&principal) * axes.transpose();
+            for r in 0..D {
+                for c in 0..D {
+                    stress[(r, c)] = sigma[(r, c)];
+                }
+            }
+
+            // Return the elastic stretch along the same axes: Fe ← A·Fe with
+            // A = exp(ε_new − ε_trial), then Fp⁻¹ = F⁻¹ Fe.
+            let new_deviatoric = deviatoric_stress / (2.0 * mu);
+            if scale != 1.0 {
+                let change = (new_deviatoric - deviatoric).map(f64::exp);
+                let a = axes * Matrix3::from_diagonal(&change) * axes.transpose();
+                let fp_inv_new = f_inv * a * fe;
+                for r in 0..3 {
+                    for c in 0..3 {
+                        fp_inv_slot[3 * r + c] = fp_inv_new[(r, c)];
+                    }
+                }
+            }
+            let ln_j = j.ln();
+            energy += v0 * (mu * new_deviatoric.norm_squared() + 0.5 * bulk * ln_j * ln_j);
+        }
+        let speed2 = |jj: f64| {
+            let k = p.equation_of_state.tangent_bulk_modulus(jj, rho0, bulk);
+            (k + 4.0 / 3.0 * mu) * jj / rho0
+        };
+        BatchStats {
+            strain_energy: energy,
+            max_wave_speed: speed2(min_j).max(speed2(max_j)).sqrt(),
+        }
+    }
+}
+
+/// 3×3 view of a `D`×`D` matrix (used by tests).
+#[cfg(test)]
+pub(crate) fn embed<const D: usize>(m: &Matrix<D>) -> Matrix3<f64> {
+    let mut out = Matrix3::identity();
+    for r in 0..D {
+        for c in 0..D {
+            out[(r, c)] = m[(r, c)];
+        }
+    }
+    out
+}
