@@ -162,9 +162,58 @@ fn sparse_surface() -> Value {
     })
 }
 
+/// A plane-strain 4340 steel block (Johnson–Cook with damage, Mie–Grüneisen) hitting a rigid
+/// wall at `speed` m/s: plasticity, shocks, failure and heating at once.
+fn impact(speed: f64) -> Value {
+    json!({
+        "name": format!("impact-{speed}"), "dimension": 2,
+        "domain": {"min": [0, 0], "max": [0.1, 0.012], "cell_size": 0.0005,
+                   "walls": [{"sides": ["y-"], "condition": "slip"}]},
+        "solver": {"end_time": 2e-5, "cfl": 0.3},
+        "materials": {"steel": {
+            "type": "johnson_cook", "density": 7830.0, "youngs_modulus": 200e9,
+            "poisson_ratio": 0.29, "specific_heat": 477.0,
+            "flow_stress": {"yield_stress": 792e6, "hardening_modulus": 510e6,
+                            "hardening_exponent": 0.26, "strain_rate_sensitivity": 0.014,
+                            "thermal_softening_exponent": 1.03, "room_temperature": 293.0,
+                            "melt_temperature": 1793.0},
+            "equation_of_state": {"type": "mie_gruneisen", "sound_speed": 4569.0,
+                                  "slope": 1.49, "gruneisen": 2.17},
+            "damage": {"d1": 0.05, "d2": 3.44, "d3": -2.12, "d4": 0.002, "d5": 0.61}}},
+        "bodies": [{"material": "steel",
+                    "shape": {"box": {"min": [0.045, 0.0], "max": [0.055, 0.005]}},
+                    "velocity": {"uniform": [0.0, -speed]}}],
+        "output": {"frames": 1, "fields": ["x", "damage"]}
+    })
+}
+
 /// Every case of the suite.
 pub fn cases() -> Vec<Case> {
     vec![
+        Case {
+            name: "impact-50",
+            what: "Johnson-Cook steel block on a rigid wall at 50 m/s",
+            scene: impact(50.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "impact-200",
+            what: "Johnson-Cook steel block on a rigid wall at 200 m/s",
+            scene: impact(200.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "impact-500",
+            what: "Johnson-Cook steel block on a rigid wall at 500 m/s (failure at the foot)",
+            scene: impact(500.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "impact-1000",
+            what: "Johnson-Cook steel block on a rigid wall at 1000 m/s (shock, melting, failure)",
+            scene: impact(1000.0),
+            expected: Expected::Finished,
+        },
         Case {
             name: "contrast-1e4",
             what: "stiff block on a soft one, E ratio 1e4",

@@ -118,7 +118,10 @@ impl ConstitutiveLaw for JohnsonCook {
         let t0 = p.initial_temperature();
         let [strain_f, damage_f, temp_f, rate_f, inverse_f, ..] = batch.state.fields;
         let mut energy = 0.0;
-        let (mut min_j, mut max_j) = (1.0f64, 1.0f64);
+        // Volume ratios that bound the wave speed: of intact particles, and of failed ones
+        // in compression (failed particles in tension carry no stress, and must not shrink
+        // the time step as a crack opens).
+        let (mut min_j, mut max_j, mut min_j_failed) = (1.0f64, 1.0f64, 1.0f64);
         for (k, ((f, stress), v0)) in batch
             .deformation_gradient
             .iter()
@@ -137,8 +140,6 @@ impl ConstitutiveLaw for JohnsonCook {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
-            min_j = min_j.min(j);
-            max_j = max_j.max(j);
             let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
             let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
             let fe = f3 * fp_inv;
@@ -218,15 +219,27 @@ impl ConstitutiveLaw for JohnsonCook {
                 }
             }
             let ln_j = j.ln();
-            energy += v0 * (mu * new_deviatoric.norm_squared() + 0.5 * bulk * ln_j * ln_j);
+            if damage_f[k] >= 1.0 {
+                if j < 1.0 {
+                    min_j_failed = min_j_failed.min(j);
+                    energy += v0 * 0.5 * bulk * ln_j * ln_j;
+                }
+            } else {
+                min_j = min_j.min(j);
+                max_j = max_j.max(j);
+                energy += v0 * (mu * new_deviatoric.norm_squared() + 0.5 * bulk * ln_j * ln_j);
+            }
         }
-        let speed2 = |jj: f64| {
-            let k = p.equation_of_state.tangent_bulk_modulus(jj, rho0, bulk);
-            (k + 4.0 / 3.0 * mu) * jj / rho0
+        let eos = &p.equation_of_state;
+        let speed2 = |jj: f64, shear: f64| {
+            (eos.tangent_bulk_modulus(jj, rho0, bulk) + 4.0 / 3.0 * shear) * jj / rho0
         };
+        let speed2 = speed2(min_j, mu)
+            .max(speed2(max_j, mu))
+            .max(speed2(min_j_failed, 0.0));
         BatchStats {
             strain_energy: energy,
-            max_wave_speed: speed2(min_j).max(speed2(max_j)).sqrt(),
+            max_wave_speed: speed2.sqrt(),
         }
     }
 }

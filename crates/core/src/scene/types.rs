@@ -269,6 +269,9 @@ pub struct Body {
     /// Initial velocity.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity: Option<InitialVelocity>,
+    /// Regions cut out of the shape (voids, holes, notches): box, sphere or cylinder.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub holes: Vec<Shape>,
     /// Keep only the particles inside the domain instead of refusing the scene; for
     /// symmetry models, where a slip wall on a domain face cuts the shape in half.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]

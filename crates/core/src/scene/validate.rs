@@ -287,6 +287,46 @@ impl Validator {
         }
     }
 
+    /// Checks a body shape or hole; `path` names it (`bodies[0].shape`).
+    fn check_shape(&mut self, path: &str, shape: &Shape) {
+        match shape {
+            Shape::Box { min, max } => {
+                let p = format!("{path}.box");
+                if self.vector(&format!("{p}.min"), min) && self.vector(&format!("{p}.max"), max) {
+                    for a in 0..self.dim {
+                        if max[a] <= min[a] {
+                            self.err(format!("{p}.max[{a}]"), format!("must exceed min[{a}]"));
+                        }
+                    }
+                }
+            }
+            Shape::Sphere { center, radius } => {
+                self.vector(&format!("{path}.sphere.center"), center);
+                self.positive(&format!("{path}.sphere.radius"), *radius);
+            }
+            Shape::Cylinder {
+                center,
+                radius,
+                axis,
+                length,
+            } => {
+                let p = format!("{path}.cylinder");
+                if self.dim != 3 {
+                    self.err(&p, "cylinders are 3D shapes; use a sphere for a disk in 2D");
+                }
+                self.vector(&format!("{p}.center"), center);
+                self.nonzero_vector(&format!("{p}.axis"), axis);
+                self.positive(&format!("{p}.radius"), *radius);
+                self.positive(&format!("{p}.length"), *length);
+            }
+            Shape::File { path: file, .. } => {
+                if file.is_empty() {
+                    self.err(format!("{path}.file.path"), "must not be empty");
+                }
+            }
+        }
+    }
+
     fn check_body(&mut self, path: &str, b: &Body, s: &Scene) {
         if !s.materials.contains_key(&b.material) {
             let known: Vec<&str> = s.materials.keys().map(String::as_str).collect();
@@ -305,41 +345,9 @@ impl Validator {
                 "must be between 1 and 8",
             );
         }
-        match &b.shape {
-            Shape::Box { min, max } => {
-                let p = format!("{path}.shape.box");
-                if self.vector(&format!("{p}.min"), min) && self.vector(&format!("{p}.max"), max) {
-                    for a in 0..self.dim {
-                        if max[a] <= min[a] {
-                            self.err(format!("{p}.max[{a}]"), format!("must exceed min[{a}]"));
-                        }
-                    }
-                }
-            }
-            Shape::Sphere { center, radius } => {
-                self.vector(&format!("{path}.shape.sphere.center"), center);
-                self.positive(&format!("{path}.shape.sphere.radius"), *radius);
-            }
-            Shape::Cylinder {
-                center,
-                radius,
-                axis,
-                length,
-            } => {
-                let p = format!("{path}.shape.cylinder");
-                if self.dim != 3 {
-                    self.err(&p, "cylinders are 3D shapes; use a sphere for a disk in 2D");
-                }
-                self.vector(&format!("{p}.center"), center);
-                self.nonzero_vector(&format!("{p}.axis"), axis);
-                self.positive(&format!("{p}.radius"), *radius);
-                self.positive(&format!("{p}.length"), *length);
-            }
-            Shape::File { path: file, .. } => {
-                if file.is_empty() {
-                    self.err(format!("{path}.shape.file.path"), "must not be empty");
-                }
-            }
+        self.check_shape(&format!("{path}.shape"), &b.shape);
+        for (k, hole) in b.holes.iter().enumerate() {
+            self.check_shape(&format!("{path}.holes[{k}]"), hole);
         }
         match &b.velocity {
             None => {}
@@ -630,24 +638,28 @@ impl Validator {
                     }
                 }
             }
+            for (h_index, hole) in b.holes.iter().enumerate() {
+                if matches!(hole, Shape::File { .. }) {
+                    self.err(
+                        format!("{path}.holes[{h_index}]"),
+                        "a hole is a box, sphere or cylinder",
+                    );
+                    continue;
+                }
+                let keep: Vec<bool> = body
+                    .positions
+                    .chunks_exact(dim)
+                    .map(|x| !shape_contains(hole, x))
+                    .collect();
+                retain_particles(&mut body, dim, &keep);
+            }
             if b.clip_to_domain {
                 let keep: Vec<bool> = body
                     .positions
                     .chunks_exact(dim)
                     .map(|x| (0..dim).all(|a| x[a] >= s.domain.min[a] && x[a] <= s.domain.max[a]))
                     .collect();
-                let mut k = 0;
-                body.positions.retain(|_| {
-                    let inside = keep[k / dim];
-                    k += 1;
-                    inside
-                });
-                let mut k = 0;
-                body.volumes.retain(|_| {
-                    let inside = keep[k];
-                    k += 1;
-                    inside
-                });
+                retain_particles(&mut body, dim, &keep);
             }
             let n = body.volumes.len();
             if n == 0 {
@@ -686,6 +698,52 @@ impl Validator {
             out.push(body);
         }
         out
+    }
+}
+
+/// Keeps the particles whose `keep` entry is true.
+fn retain_particles(body: &mut BodyParticles, dim: usize, keep: &[bool]) {
+    let mut k = 0;
+    body.positions.retain(|_| {
+        let inside = keep[k / dim];
+        k += 1;
+        inside
+    });
+    let mut k = 0;
+    body.volumes.retain(|_| {
+        let inside = keep[k];
+        k += 1;
+        inside
+    });
+}
+
+/// Whether point `x` lies in a box, sphere or cylinder (never in a file shape).
+fn shape_contains(shape: &Shape, x: &[f64]) -> bool {
+    match shape {
+        Shape::Box { min, max } => x
+            .iter()
+            .enumerate()
+            .all(|(a, v)| *v >= min[a] && *v <= max[a]),
+        Shape::Sphere { center, radius } => {
+            x.iter()
+                .zip(center)
+                .map(|(a, c)| (a - c).powi(2))
+                .sum::<f64>()
+                <= radius * radius
+        }
+        Shape::Cylinder {
+            center,
+            radius,
+            axis,
+            length,
+        } => {
+            let norm = axis.iter().map(|a| a * a).sum::<f64>().sqrt();
+            let r: Vec<f64> = x.iter().zip(center).map(|(a, c)| a - c).collect();
+            let along: f64 = r.iter().zip(axis).map(|(a, b)| a * b / norm).sum();
+            let r2: f64 = r.iter().map(|a| a * a).sum::<f64>() - along * along;
+            along.abs() <= length / 2.0 && r2 <= radius * radius
+        }
+        Shape::File { .. } => false,
     }
 }
 
