@@ -65,8 +65,7 @@ impl JohnsonCook {
     /// Plastic strain increment that brings trial von Mises (Kirchhoff) stress `q_trial`
     /// back to the flow stress: solves q_trial − 3μΔε = σ_y(εₚ + Δε, Δε/dt, T) by Newton's
     /// method kept inside a bracket (the left side falls, the right side rises with Δε).
-    /// Returns the increment and the flow stress reached.
-    fn return_map(&self, q_trial: f64, strain: f64, thermal: f64, dt: f64) -> (f64, f64) {
+    fn return_map(&self, q_trial: f64, strain: f64, thermal: f64, dt: f64) -> f64 {
         let flow = &self.params.flow_stress;
         let three_mu = 3.0 * self.shear;
         let yield0 = flow.evaluate(strain, 0.0, thermal).0;
@@ -74,10 +73,8 @@ impl JohnsonCook {
         let mut hi = ((q_trial - yield0) / three_mu).max(0.0);
         let mut lo = 0.0;
         let mut x = hi;
-        let mut stress = yield0;
         for _ in 0..60 {
             let (s, ds_dstrain, ds_drate) = flow.evaluate(strain + x, x / dt, thermal);
-            stress = s;
             let g = q_trial - three_mu * x - s;
             if g.abs() <= 1e-12 * q_trial {
                 break;
@@ -97,7 +94,7 @@ impl JohnsonCook {
                 break;
             }
         }
-        (x, stress)
+        x
     }
 }
 
@@ -156,12 +153,12 @@ impl ConstitutiveLaw for JohnsonCook {
             let (increment, scale) = if failed {
                 (0.0, 0.0)
             } else if q_trial > flow.evaluate(strain_f[k], 0.0, thermal).0 {
-                let (dep, _) = self.return_map(q_trial, strain_f[k], thermal, batch.dt);
+                let dep = self.return_map(q_trial, strain_f[k], thermal, batch.dt);
                 (dep, (1.0 - 3.0 * mu * dep / q_trial).max(0.0))
             } else {
                 (0.0, 1.0)
             };
-            let deviatoric_stress = trial * scale;
+            let mut deviatoric_stress = trial * scale;
             let q = q_trial * scale;
             strain_f[k] += increment;
             rate_f[k] = increment / batch.dt;
@@ -186,7 +183,6 @@ impl ConstitutiveLaw for JohnsonCook {
                 );
                 damage_f[k] = (damage_f[k] + increment / strain_at_failure).min(1.0);
             }
-            let mut deviatoric_stress = deviatoric_stress;
             if damage_f[k] >= 1.0 {
                 deviatoric_stress = Vector3::zeros();
                 let mode = p.damage.map(|d| d.failure).unwrap_or_default();

@@ -534,3 +534,14 @@ pub enum Reference {
         source: String,
     },
 }
+
+impl Reference {
+    /// The axis the reference measures along (bar, beam or impact axis).
+    pub fn axis(&self) -> usize {
+        match self {
+            Reference::VibratingBar { axis, .. }
+            | Reference::CantileverElastica { axis, .. }
+            | Reference::TaylorBar { axis, .. } => *axis,
+        }
+    }
+}

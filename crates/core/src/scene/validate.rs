@@ -437,18 +437,18 @@ impl Validator {
     }
 
     fn check_reference(&mut self, r: &Reference) {
+        if r.axis() >= self.dim {
+            self.err("reference.axis", format!("must be below {}", self.dim));
+        }
         match r {
             Reference::VibratingBar {
-                axis,
                 fixed_end,
                 length,
                 amplitude,
                 youngs_modulus,
                 density,
+                ..
             } => {
-                if *axis >= self.dim {
-                    self.err("reference.axis", format!("must be below {}", self.dim));
-                }
                 if !fixed_end.is_finite() || !amplitude.is_finite() {
                     self.err("reference", "fixed_end and amplitude must be finite");
                 }
@@ -457,7 +457,6 @@ impl Validator {
                 self.positive("reference.density", *density);
             }
             Reference::CantileverElastica {
-                axis,
                 clamped_end,
                 length,
                 thickness,
@@ -465,10 +464,8 @@ impl Validator {
                 poisson_ratio,
                 density,
                 gravity,
+                ..
             } => {
-                if *axis >= self.dim {
-                    self.err("reference.axis", format!("must be below {}", self.dim));
-                }
                 if !clamped_end.is_finite() {
                     self.err("reference.clamped_end", "must be finite");
                 }
@@ -482,7 +479,6 @@ impl Validator {
                 }
             }
             Reference::TaylorBar {
-                axis,
                 wall,
                 center,
                 final_length,
@@ -490,9 +486,6 @@ impl Validator {
                 peak_plastic_strain,
                 ..
             } => {
-                if *axis >= self.dim {
-                    self.err("reference.axis", format!("must be below {}", self.dim));
-                }
                 if !wall.is_finite() {
                     self.err("reference.wall", "must be finite");
                 }
