@@ -504,6 +504,12 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                         println!("{}", serde_json::to_string_pretty(&schema)?);
                     }
                 }
+                for (physics, schema) in registry.physics_of(plugin.name()) {
+                    println!("  physics `{physics}`");
+                    if schemas {
+                        println!("{}", serde_json::to_string_pretty(&schema)?);
+                    }
+                }
             }
             Ok(ExitStatus::Success)
         }

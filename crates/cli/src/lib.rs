@@ -24,6 +24,9 @@ pub fn default_registry() -> Registry {
     registry
         .register(Box::new(mpm_johnson_cook::JohnsonCookPlugin))
         .expect("built-in plugins have distinct names");
+    registry
+        .register(Box::new(mpm_thermal::ThermalPlugin))
+        .expect("built-in plugins have distinct names");
     registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
     registry
 }
@@ -37,6 +40,17 @@ pub fn scene_schema(registry: &Registry) -> serde_json::Value {
         .collect();
     if let Some(slot) = schema.pointer_mut("/properties/materials") {
         slot["additionalProperties"] = serde_json::json!({ "oneOf": materials });
+    }
+    let physics: serde_json::Map<String, serde_json::Value> = registry
+        .physics_names()
+        .map(|n| {
+            let (_, f) = registry.physics(n).expect("listed");
+            (n.to_string(), f.schema())
+        })
+        .collect();
+    if let Some(slot) = schema.pointer_mut("/properties/physics") {
+        slot["properties"] = serde_json::Value::Object(physics);
+        slot["additionalProperties"] = serde_json::json!(false);
     }
     schema
 }

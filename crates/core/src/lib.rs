@@ -5,12 +5,14 @@
 //! `docs/ARCHITECTURE.md` for the step pipeline.
 
 pub mod boundary;
+pub mod closed_forms;
 pub mod grid;
 pub mod kernels;
 pub mod material;
 pub mod math;
 pub mod output;
 pub mod particles;
+pub mod physics;
 pub mod plugin;
 pub mod reference;
 pub mod scene;

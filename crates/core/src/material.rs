@@ -6,6 +6,19 @@ use crate::math::Matrix;
 /// Most per-particle state fields one material may declare.
 pub const MAX_STATE_FIELDS: usize = 8;
 
+/// Most shared fields (created by physics operators) one material may read.
+pub const MAX_SHARED_READS: usize = 4;
+
+/// A shared particle field a material reads (see [`crate::physics`]): `temperature` for
+/// thermal softening, `solid_fraction` for a law that moves from fluid to solid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SharedRead {
+    /// Field name.
+    pub name: &'static str,
+    /// Whether the scene must have a physics that creates it (else the slice is empty).
+    pub required: bool,
+}
+
 /// A per-particle field a material keeps between steps (plastic strain, damage, ...).
 /// The core allocates it only for the particles of that material.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,6 +67,12 @@ pub struct StressBatch<'a, const D: usize> {
     pub stress: &'a mut [Matrix<D>],
     /// The material's own per-particle state.
     pub state: StateSlices<'a>,
+    /// The shared fields the material declared in [`ConstitutiveLaw::shared_reads`], in that
+    /// order; a field no physics created is an empty slice.
+    pub shared: [&'a [f64]; MAX_SHARED_READS],
+    /// Where the law writes the plastic work it dissipated in this step, J per m³ of
+    /// reference volume (heat for a thermal physics); empty when nothing consumes it.
+    pub plastic_work: &'a mut [f64],
 }
 
 /// What a batch update reports back for diagnostics and the time step.
@@ -88,6 +107,10 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn needs_velocity_gradient(&self) -> bool {
         false
     }
+    /// Shared fields (from physics operators) the law reads, at most [`MAX_SHARED_READS`].
+    fn shared_reads(&self) -> &[SharedRead] {
+        &[]
+    }
     /// Computes the Cauchy stress of every particle in the batch and reports the batch's
     /// strain energy and largest wave speed.
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats;
@@ -101,6 +124,8 @@ pub trait Material: Send + Sync {
     fn state_fields(&self) -> &[FieldSpec];
     /// See [`ConstitutiveLaw::needs_velocity_gradient`].
     fn needs_velocity_gradient(&self) -> bool;
+    /// See [`ConstitutiveLaw::shared_reads`].
+    fn shared_reads(&self) -> &[SharedRead];
     /// 2D (plane strain) batch update.
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats;
     /// 3D batch update.
@@ -116,6 +141,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn needs_velocity_gradient(&self) -> bool {
         ConstitutiveLaw::needs_velocity_gradient(self)
+    }
+    fn shared_reads(&self) -> &[SharedRead] {
+        ConstitutiveLaw::shared_reads(self)
     }
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats {
         self.update_stress::<2>(batch)

@@ -185,4 +185,8 @@ pub struct Metrics {
     pub threads: usize,
     /// Why the run stopped, when it did.
     pub diagnostic: Option<Diagnostic>,
+    /// Largest value over the run of figures the physics operators report (solver
+    /// iterations, say) and of the quasi-static relaxation iterations.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub physics: std::collections::BTreeMap<String, f64>,
 }

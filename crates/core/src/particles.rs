@@ -4,6 +4,7 @@
 
 use crate::material::Material;
 use crate::math::{Matrix, Vector};
+use crate::physics::ParticleFields;
 use std::ops::Range;
 use std::sync::Arc;
 
@@ -47,6 +48,8 @@ pub struct Particles<const D: usize> {
     pub id: Vec<u32>,
     /// Contiguous ranges of particles sharing a material.
     pub groups: Vec<MaterialGroup>,
+    /// Scalar fields the scene's physics operators created (empty without physics).
+    pub shared: ParticleFields,
 }
 
 impl<const D: usize> Particles<D> {
@@ -80,6 +83,7 @@ impl<const D: usize> Particles<D> {
                 * m
             + self.id.capacity() * 4
             + state
+            + self.shared.bytes()
     }
 
     /// Bytes per particle (see [`Particles::bytes`]).

@@ -4,6 +4,7 @@
 //! [`Registry`] with one line. The core knows no plugin by name.
 
 use crate::material::Material;
+use crate::physics::PhysicsFactory;
 use crate::scene::Issue;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -17,6 +18,10 @@ pub trait Plugin: Send + Sync {
     fn description(&self) -> &'static str;
     /// The material types this plugin provides.
     fn materials(&self) -> Vec<Box<dyn MaterialFactory>>;
+    /// The physics operators this plugin provides (scene sections `physics.<name>`).
+    fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
+        Vec::new()
+    }
 }
 
 /// Builds one material type from its scene section (`materials.<name>`).
@@ -39,6 +44,9 @@ pub enum RegistryError {
     /// Two plugins claim the same material type.
     #[error("material type `{0}` is provided by two plugins (`{1}` and `{2}`)")]
     DuplicateMaterial(String, String, String),
+    /// Two plugins claim the same physics section.
+    #[error("physics `{0}` is provided by two plugins (`{1}` and `{2}`)")]
+    DuplicatePhysics(String, String, String),
     /// Two plugins with one name.
     #[error("plugin `{0}` is registered twice")]
     DuplicatePlugin(String),
@@ -55,6 +63,7 @@ pub type ParticleStoreReader =
 pub struct Registry {
     plugins: Vec<Box<dyn Plugin>>,
     materials: BTreeMap<&'static str, (usize, Box<dyn MaterialFactory>)>,
+    physics: Vec<(usize, Box<dyn PhysicsFactory>)>,
     store_reader: Option<ParticleStoreReader>,
 }
 
@@ -81,6 +90,17 @@ impl Registry {
             }
             self.materials.insert(name, (index, factory));
         }
+        for factory in plugin.physics() {
+            let name = factory.name();
+            if let Some((other, _)) = self.physics.iter().find(|(_, f)| f.name() == name) {
+                return Err(RegistryError::DuplicatePhysics(
+                    name.into(),
+                    self.plugins[*other].name().into(),
+                    plugin.name().into(),
+                ));
+            }
+            self.physics.push((index, factory));
+        }
         self.plugins.push(plugin);
         Ok(())
     }
@@ -93,6 +113,33 @@ impl Registry {
     /// Registered material type names, sorted.
     pub fn material_types(&self) -> impl Iterator<Item = &'static str> + '_ {
         self.materials.keys().copied()
+    }
+
+    /// The factory for a physics section, with its position in registration order (physics
+    /// run in that order, so a plugin that reads another's fields registers after it).
+    pub fn physics(&self, name: &str) -> Option<(usize, &dyn PhysicsFactory)> {
+        self.physics
+            .iter()
+            .enumerate()
+            .find(|(_, (_, f))| f.name() == name)
+            .map(|(k, (_, f))| (k, f.as_ref()))
+    }
+
+    /// Registered physics section names, in registration order.
+    pub fn physics_names(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.physics.iter().map(|(_, f)| f.name())
+    }
+
+    /// Physics sections of one plugin with their schemas.
+    pub fn physics_of(&self, plugin: &str) -> Vec<(&'static str, serde_json::Value)> {
+        let Some(index) = self.plugins.iter().position(|p| p.name() == plugin) else {
+            return Vec::new();
+        };
+        self.physics
+            .iter()
+            .filter(|(i, _)| *i == index)
+            .map(|(_, f)| (f.name(), f.schema()))
+            .collect()
     }
 
     /// Registered plugins in registration order.

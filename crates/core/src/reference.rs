@@ -1,5 +1,8 @@
 //! Reference solutions a run measures its error against (closed forms and a shooting solve).
 
+use crate::closed_forms::{
+    kamal_sourour_isothermal, neumann_lambda, semi_infinite_temperature, slab_temperature,
+};
 use crate::math::Vector;
 use crate::output::Comparison;
 use crate::particles::Particles;
@@ -14,6 +17,8 @@ pub struct ReferenceTracker {
     measured: Option<f64>,
     expected: Option<f64>,
     comparisons: Vec<Comparison>,
+    /// Neumann's constant of a Stefan reference.
+    lambda: f64,
 }
 
 impl ReferenceTracker {
@@ -38,6 +43,27 @@ impl ReferenceTracker {
             Reference::TaylorBar { final_length, .. } => Some(*final_length),
             _ => None,
         };
+        let lambda = match &reference {
+            Reference::Stefan {
+                melt_temperature,
+                surface_temperature,
+                initial_temperature,
+                latent_heat,
+                liquid,
+                solid,
+                ..
+            } => {
+                let diffusivity = |p: &crate::scene::PhaseProperties| {
+                    p.conductivity / (p.density * p.specific_heat)
+                };
+                neumann_lambda(
+                    liquid.specific_heat * (surface_temperature - melt_temperature) / latent_heat,
+                    solid.specific_heat * (melt_temperature - initial_temperature) / latent_heat,
+                    (diffusivity(liquid) / diffusivity(solid)).sqrt(),
+                )
+            }
+            _ => 0.0,
+        };
         Self {
             reference,
             numerator: 0.0,
@@ -45,6 +71,7 @@ impl ReferenceTracker {
             measured: None,
             expected,
             comparisons: Vec::new(),
+            lambda,
         }
     }
 
@@ -60,12 +87,30 @@ impl ReferenceTracker {
             Reference::TaylorBar { .. } => {
                 "relative error of the final bar length against the published Taylor impact value"
             }
+            Reference::SlabTemperature { .. } => {
+                "RMS temperature error over particles and frames / temperature step (slab, Fourier series)"
+            }
+            Reference::SemiInfiniteTemperature { .. } => {
+                "RMS temperature error over particles and frames / temperature step (semi-infinite body, erf solution)"
+            }
+            Reference::Stefan { .. } => {
+                "relative L2 error of the melting front position over frames (Neumann solution)"
+            }
+            Reference::IsothermalCure { .. } => {
+                "RMS error of the mean degree of cure over frames (Kamal-Sourour m = n = 1 closed form)"
+            }
+            Reference::AdiabaticCure { .. } => {
+                "largest |T - T0 - (H/c) alpha| over particles and frames, divided by H/c"
+            }
         }
     }
 
     /// Whether the tracker needs each particle's initial position.
     pub fn needs_initial_positions(&self) -> bool {
-        !matches!(self.reference, Reference::TaylorBar { .. })
+        matches!(
+            self.reference,
+            Reference::VibratingBar { .. } | Reference::CantileverElastica { .. }
+        )
     }
 
     /// Takes one output frame into account.
@@ -149,6 +194,114 @@ impl ReferenceTracker {
                     compare("peak_plastic_strain", shape.peak_plastic_strain, e);
                 }
             }
+            Reference::SlabTemperature {
+                axis,
+                min,
+                max,
+                initial_temperature,
+                surface_temperature,
+                diffusivity,
+            } => {
+                let Some(temperature) = particles.shared.get("temperature") else {
+                    return;
+                };
+                if time <= 0.0 {
+                    return;
+                }
+                let step2 = (initial_temperature - surface_temperature).powi(2);
+                for (x, t) in particles.position.iter().zip(temperature) {
+                    let exact = slab_temperature(
+                        x[axis] - min,
+                        time,
+                        max - min,
+                        diffusivity,
+                        initial_temperature,
+                        surface_temperature,
+                    );
+                    self.numerator += (t - exact).powi(2);
+                    self.denominator += step2;
+                }
+            }
+            Reference::SemiInfiniteTemperature {
+                axis,
+                surface,
+                initial_temperature,
+                surface_temperature,
+                diffusivity,
+            } => {
+                let Some(temperature) = particles.shared.get("temperature") else {
+                    return;
+                };
+                if time <= 0.0 {
+                    return;
+                }
+                let step2 = (initial_temperature - surface_temperature).powi(2);
+                for (x, t) in particles.position.iter().zip(temperature) {
+                    let exact = semi_infinite_temperature(
+                        (x[axis] - surface).abs(),
+                        time,
+                        diffusivity,
+                        initial_temperature,
+                        surface_temperature,
+                    );
+                    self.numerator += (t - exact).powi(2);
+                    self.denominator += step2;
+                }
+            }
+            Reference::Stefan {
+                length, ref liquid, ..
+            } => {
+                let Some(solid_fraction) = particles.shared.get("solid_fraction") else {
+                    return;
+                };
+                if time <= 0.0 {
+                    return;
+                }
+                let (mut melted, mut total) = (0.0, 0.0);
+                for (f, v) in solid_fraction.iter().zip(&particles.volume0) {
+                    melted += (1.0 - f) * v;
+                    total += v;
+                }
+                let front = length * melted / total.max(1e-300);
+                let alpha_l = liquid.conductivity / (liquid.density * liquid.specific_heat);
+                let exact = 2.0 * self.lambda * (alpha_l * time).sqrt();
+                self.numerator += (front - exact).powi(2);
+                self.denominator += exact * exact;
+                self.measured = Some(front);
+                self.expected = Some(exact);
+            }
+            Reference::IsothermalCure { k1, k2 } => {
+                let Some(cure) = particles.shared.get("cure") else {
+                    return;
+                };
+                if time <= 0.0 {
+                    return;
+                }
+                let mean = cure.iter().sum::<f64>() / cure.len().max(1) as f64;
+                let exact = kamal_sourour_isothermal(k1, k2, time);
+                self.numerator += (mean - exact).powi(2);
+                self.denominator += 1.0;
+                self.measured = Some(mean);
+                self.expected = Some(exact);
+            }
+            Reference::AdiabaticCure {
+                initial_temperature,
+                heat_of_reaction,
+                specific_heat,
+            } => {
+                let (Some(cure), Some(temperature)) = (
+                    particles.shared.get("cure"),
+                    particles.shared.get("temperature"),
+                ) else {
+                    return;
+                };
+                let rise = heat_of_reaction / specific_heat;
+                for (a, t) in cure.iter().zip(temperature) {
+                    let e = (t - initial_temperature - rise * a).abs() / rise;
+                    self.numerator = self.numerator.max(e);
+                }
+                self.denominator = 1.0;
+            }
         }
     }
 
@@ -160,9 +313,14 @@ impl ReferenceTracker {
     /// The error so far (`None` before anything was observed).
     pub fn error(&self) -> Option<f64> {
         match self.reference {
-            Reference::VibratingBar { .. } => {
+            Reference::VibratingBar { .. }
+            | Reference::SlabTemperature { .. }
+            | Reference::SemiInfiniteTemperature { .. }
+            | Reference::Stefan { .. }
+            | Reference::IsothermalCure { .. } => {
                 (self.denominator > 0.0).then(|| (self.numerator / self.denominator).sqrt())
             }
+            Reference::AdiabaticCure { .. } => (self.denominator > 0.0).then_some(self.numerator),
             Reference::CantileverElastica { .. } | Reference::TaylorBar { .. } => {
                 let (m, e) = (self.measured?, self.expected?);
                 Some((m - e).abs() / e.abs())

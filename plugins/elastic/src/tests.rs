@@ -24,6 +24,8 @@ fn stress_of<L: ConstitutiveLaw, const D: usize>(law: &L, f: Matrix<D>) -> (Matr
         state: StateSlices {
             fields: std::array::from_fn(|_| &mut [][..]),
         },
+        shared: [&[]; 4],
+        plastic_work: &mut [],
     });
     (stress[0], stats.strain_energy)
 }

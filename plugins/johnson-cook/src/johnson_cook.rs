@@ -13,7 +13,7 @@
 use crate::JohnsonCookParameters;
 use crate::damage::FailureMode;
 use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, StressBatch, lame_parameters,
+    BatchStats, ConstitutiveLaw, SharedRead, FieldInit, FieldSpec, StressBatch, lame_parameters,
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;
@@ -107,6 +107,15 @@ impl ConstitutiveLaw for JohnsonCook {
         &self.fields
     }
 
+    fn shared_reads(&self) -> &[SharedRead] {
+        // With a thermal physics the temperature is shared (conducted); without one the
+        // law heats its own `temperature` adiabatically.
+        &[SharedRead {
+            name: "temperature",
+            required: false,
+        }]
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let p = &self.params;
         let (mu, bulk, rho0) = (self.shear, self.bulk, p.density);
@@ -114,6 +123,8 @@ impl ConstitutiveLaw for JohnsonCook {
         let heat_per_work = p.taylor_quinney / (rho0 * p.specific_heat);
         let t0 = p.initial_temperature();
         let [strain_f, damage_f, temp_f, rate_f, inverse_f, ..] = batch.state.fields;
+        let shared_temperature = batch.shared[0];
+        let conducted = !shared_temperature.is_empty();
         let mut energy = 0.0;
         // Volume ratios that bound the wave speed: of intact particles, and of failed ones
         // in compression (failed particles in tension carry no stress, and must not shrink
@@ -147,7 +158,11 @@ impl ConstitutiveLaw for JohnsonCook {
             let trial = deviatoric * (2.0 * mu);
             let q_trial = (1.5 * trial.norm_squared()).sqrt();
 
-            let temperature = temp_f[k];
+            let temperature = if conducted {
+                shared_temperature[k]
+            } else {
+                temp_f[k]
+            };
             let failed = damage_f[k] >= 1.0;
             let thermal = flow.thermal_factor(temperature);
             let (increment, scale) = if failed {
@@ -162,7 +177,16 @@ impl ConstitutiveLaw for JohnsonCook {
             let q = q_trial * scale;
             strain_f[k] += increment;
             rate_f[k] = increment / batch.dt;
-            let new_temperature = temperature + heat_per_work * q * increment;
+            // Plastic work per reference volume (τ : dεp with Kirchhoff stress).
+            let work = q * increment;
+            if let Some(w) = batch.plastic_work.get_mut(k) {
+                *w = work;
+            }
+            let new_temperature = if conducted {
+                temperature
+            } else {
+                temperature + heat_per_work * work
+            };
             temp_f[k] = new_temperature;
 
             let internal_energy = rho0 * p.specific_heat * (new_temperature - t0);

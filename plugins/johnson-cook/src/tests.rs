@@ -59,6 +59,8 @@ impl<const D: usize> Point<D> {
             volume0: &[1.0],
             stress: std::slice::from_mut(&mut self.stress),
             state: StateSlices { fields },
+            shared: [&[]; 4],
+            plastic_work: &mut [],
         };
         self.law.update_stress::<D>(batch);
     }

@@ -27,6 +27,10 @@ pub struct Scene {
     /// Rigid obstacles acting on the grid.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<Obstacle>,
+    /// Physics beyond mechanics by name (`thermal`, `phase_change`, ...), each provided by a
+    /// plugin; run in the order the plugins require (see `mpm plugins`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub physics: BTreeMap<String, serde_json::Value>,
     /// What is written and how often.
     #[serde(default)]
     pub output: Output,
@@ -210,6 +214,53 @@ pub struct Solver {
     /// Volumetric anti-locking for near-incompressible materials.
     #[serde(default, skip_serializing_if = "AntiLocking::is_none")]
     pub anti_locking: AntiLocking,
+    /// How mechanics advances: explicit dynamics (the default), not at all (physics only,
+    /// particles stay put), or quasi-statically (relaxed to equilibrium every step).
+    #[serde(default, skip_serializing_if = "Mechanics::is_dynamic")]
+    pub mechanics: Mechanics,
+}
+
+/// How the mechanical part of a step is advanced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Mechanics {
+    /// Explicit dynamics: the step is bounded by the wave speed (CFL).
+    #[default]
+    Dynamic,
+    /// No mechanics: particles keep their place and carry no stress; the step is the
+    /// physics' own stable step or `solver.dt`. For heat conduction and kinetics alone.
+    Off,
+    /// Quasi-static: after the physics of every step (of `solver.dt` or the physics' stable
+    /// step), damped explicit iterations relax the body to equilibrium under the new free
+    /// strains and loads. For slow processes (cure, cool-down) where inertia plays no part.
+    QuasiStatic {
+        /// Most relaxation iterations per step; a step that does not converge in them stops
+        /// the run with a diagnostic.
+        #[serde(default = "default_relax_iterations")]
+        max_iterations: u32,
+        /// Converged when the kinetic energy falls below this fraction of the strain energy
+        /// (and of the largest kinetic energy of the step).
+        #[serde(default = "default_relax_tolerance")]
+        tolerance: f64,
+        /// Velocity damping rate during relaxation, 1/s; default: critical damping of the
+        /// lowest mode of the domain, 2π·c/(longest domain edge).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        damping: Option<f64>,
+    },
+}
+
+impl Mechanics {
+    /// Whether mechanics is explicit dynamics (the default).
+    pub fn is_dynamic(&self) -> bool {
+        *self == Mechanics::Dynamic
+    }
+}
+
+fn default_relax_iterations() -> u32 {
+    5000
+}
+fn default_relax_tolerance() -> f64 {
+    1e-6
 }
 
 /// Volumetric anti-locking options.
@@ -533,15 +584,109 @@ pub enum Reference {
         /// Where the published values come from.
         source: String,
     },
+    /// Transient conduction in a slab between `min` and `max` along `axis` whose two faces
+    /// step from `initial_temperature` to `surface_temperature` at t = 0 (Fourier series);
+    /// error: RMS temperature error over particles and output frames after t = 0, divided
+    /// by the temperature step.
+    SlabTemperature {
+        /// Axis across the slab.
+        axis: usize,
+        /// Coordinate of the lower face.
+        min: f64,
+        /// Coordinate of the upper face.
+        max: f64,
+        /// Uniform temperature at t = 0, K.
+        initial_temperature: f64,
+        /// Temperature both faces are held at, K.
+        surface_temperature: f64,
+        /// Thermal diffusivity k/(ρc), m²/s.
+        diffusivity: f64,
+    },
+    /// A semi-infinite body (deeper than the heat reaches in the run) whose surface at
+    /// `surface` steps to `surface_temperature` at t = 0 (erf solution); error as for
+    /// `slab_temperature`.
+    SemiInfiniteTemperature {
+        /// Axis into the body.
+        axis: usize,
+        /// Coordinate of the heated surface; the body lies above it along the axis.
+        surface: f64,
+        /// Uniform temperature at t = 0, K.
+        initial_temperature: f64,
+        /// Temperature of the surface, K.
+        surface_temperature: f64,
+        /// Thermal diffusivity k/(ρc), m²/s.
+        diffusivity: f64,
+    },
+    /// Stefan problem: a solid at `initial_temperature` (the melting point for the
+    /// one-phase problem, below it for the two-phase one) melts from a surface held at
+    /// `surface_temperature`; Neumann's solution puts the front at 2λ√(α_l t). The measured
+    /// front is `surface + length × (liquid volume / body volume)`; error: relative L2
+    /// error of the front position over the output frames after t = 0.
+    Stefan {
+        /// Axis into the body.
+        axis: usize,
+        /// Coordinate of the heated surface.
+        surface: f64,
+        /// Length of the body along the axis.
+        length: f64,
+        /// Melting temperature, K.
+        melt_temperature: f64,
+        /// Temperature of the heated surface, K.
+        surface_temperature: f64,
+        /// Uniform temperature of the solid at t = 0, K.
+        initial_temperature: f64,
+        /// Latent heat, J/kg.
+        latent_heat: f64,
+        /// Liquid properties.
+        liquid: PhaseProperties,
+        /// Solid properties (the density must equal the liquid's for Neumann's solution).
+        solid: PhaseProperties,
+    },
+    /// Isothermal cure with Kamal–Sourour kinetics, m = n = 1, at the rate constants
+    /// `k1`, `k2` of the scene's temperature; error: RMS over the output frames of the mean
+    /// degree of cure minus the closed form.
+    IsothermalCure {
+        /// Rate constant k1 at the cure temperature, 1/s.
+        k1: f64,
+        /// Rate constant k2 at the cure temperature, 1/s.
+        k2: f64,
+    },
+    /// Adiabatic cure: all the heat of reaction stays, so T = T0 + (H/c)·α; error: the
+    /// largest |T − T0 − (H/c)·α| over particles and frames, divided by H/c.
+    AdiabaticCure {
+        /// Temperature at t = 0, K.
+        initial_temperature: f64,
+        /// Total heat of reaction, J/kg.
+        heat_of_reaction: f64,
+        /// Specific heat, J/(kg K).
+        specific_heat: f64,
+    },
+}
+
+/// Thermal properties of one phase in a Stefan reference.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseProperties {
+    /// Thermal conductivity, W/(m K).
+    pub conductivity: f64,
+    /// Specific heat, J/(kg K).
+    pub specific_heat: f64,
+    /// Density, kg/m³.
+    pub density: f64,
 }
 
 impl Reference {
-    /// The axis the reference measures along (bar, beam or impact axis).
-    pub fn axis(&self) -> usize {
+    /// The axis the reference measures along (bar, beam, impact or heat-flow axis); none
+    /// for references without one.
+    pub fn axis(&self) -> Option<usize> {
         match self {
             Reference::VibratingBar { axis, .. }
             | Reference::CantileverElastica { axis, .. }
-            | Reference::TaylorBar { axis, .. } => *axis,
+            | Reference::TaylorBar { axis, .. }
+            | Reference::SlabTemperature { axis, .. }
+            | Reference::SemiInfiniteTemperature { axis, .. }
+            | Reference::Stefan { axis, .. } => Some(*axis),
+            Reference::IsothermalCure { .. } | Reference::AdiabaticCure { .. } => None,
         }
     }
 }

@@ -3,6 +3,7 @@
 
 use super::{Issue, SceneError, deserialize_at, types::*};
 use crate::material::Material;
+use crate::physics::Physics;
 use crate::plugin::Registry;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -33,6 +34,8 @@ pub struct ValidatedScene {
     pub materials: BTreeMap<String, Arc<dyn Material>>,
     /// Particles of every body, in body order.
     pub bodies: Vec<BodyParticles>,
+    /// Built physics operators by section name, in the order they run.
+    pub physics: Vec<(String, Arc<dyn Physics>)>,
 }
 
 impl ValidatedScene {
@@ -82,7 +85,8 @@ pub fn parse_scene_value(
     };
     v.check(&scene);
     let materials = v.build_materials(&scene, registry);
-    v.check_output_fields(&scene, &materials);
+    let physics = v.build_physics(&scene, registry, &materials);
+    v.check_output_fields(&scene, &materials, &physics);
     let bodies = if v.issues.is_empty() {
         v.generate_bodies(&scene, registry, base_dir)
     } else {
@@ -97,6 +101,7 @@ pub fn parse_scene_value(
         json,
         materials,
         bodies,
+        physics,
     })
 }
 
@@ -285,6 +290,26 @@ impl Validator {
         if !(s.damping.is_finite() && s.damping >= 0.0) {
             self.err("solver.damping", "must be a finite number >= 0");
         }
+        if let Mechanics::QuasiStatic {
+            max_iterations,
+            tolerance,
+            damping,
+        } = s.mechanics
+        {
+            let p = "solver.mechanics.quasi_static";
+            if max_iterations == 0 {
+                self.err(format!("{p}.max_iterations"), "must be at least 1");
+            }
+            if !(tolerance > 0.0 && tolerance < 1.0) {
+                self.err(
+                    format!("{p}.tolerance"),
+                    format!("must lie in (0, 1) (got {tolerance})"),
+                );
+            }
+            if let Some(d) = damping {
+                self.positive(&format!("{p}.damping"), d);
+            }
+        }
     }
 
     /// Checks a body shape or hole; `path` names it (`bodies[0].shape`).
@@ -437,7 +462,7 @@ impl Validator {
     }
 
     fn check_reference(&mut self, r: &Reference) {
-        if r.axis() >= self.dim {
+        if r.axis().is_some_and(|a| a >= self.dim) {
             self.err("reference.axis", format!("must be below {}", self.dim));
         }
         match r {
@@ -501,6 +526,90 @@ impl Validator {
                     self.positive("reference.peak_plastic_strain", *e);
                 }
             }
+            Reference::SlabTemperature {
+                min,
+                max,
+                initial_temperature,
+                surface_temperature,
+                diffusivity,
+                ..
+            } => {
+                if !(min.is_finite() && max.is_finite() && max > min) {
+                    self.err("reference.max", "must be finite and above reference.min");
+                }
+                self.positive("reference.initial_temperature", *initial_temperature);
+                self.positive("reference.surface_temperature", *surface_temperature);
+                self.positive("reference.diffusivity", *diffusivity);
+            }
+            Reference::SemiInfiniteTemperature {
+                surface,
+                initial_temperature,
+                surface_temperature,
+                diffusivity,
+                ..
+            } => {
+                if !surface.is_finite() {
+                    self.err("reference.surface", "must be finite");
+                }
+                self.positive("reference.initial_temperature", *initial_temperature);
+                self.positive("reference.surface_temperature", *surface_temperature);
+                self.positive("reference.diffusivity", *diffusivity);
+            }
+            Reference::Stefan {
+                surface,
+                length,
+                melt_temperature,
+                surface_temperature,
+                initial_temperature,
+                latent_heat,
+                liquid,
+                solid,
+                ..
+            } => {
+                if !surface.is_finite() {
+                    self.err("reference.surface", "must be finite");
+                }
+                self.positive("reference.length", *length);
+                self.positive("reference.latent_heat", *latent_heat);
+                if !(surface_temperature > melt_temperature) {
+                    self.err(
+                        "reference.surface_temperature",
+                        "must be above the melting temperature (the body melts)",
+                    );
+                }
+                if !(initial_temperature <= melt_temperature && *initial_temperature > 0.0) {
+                    self.err(
+                        "reference.initial_temperature",
+                        "must be positive and at most the melting temperature",
+                    );
+                }
+                for (name, phase) in [("liquid", liquid), ("solid", solid)] {
+                    self.positive(&format!("reference.{name}.conductivity"), phase.conductivity);
+                    self.positive(&format!("reference.{name}.specific_heat"), phase.specific_heat);
+                    self.positive(&format!("reference.{name}.density"), phase.density);
+                }
+                if (liquid.density - solid.density).abs() > 1e-9 * liquid.density {
+                    self.err(
+                        "reference.solid.density",
+                        "Neumann's solution needs equal liquid and solid densities",
+                    );
+                }
+            }
+            Reference::IsothermalCure { k1, k2 } => {
+                self.positive("reference.k1", *k1);
+                if !(k2.is_finite() && *k2 >= 0.0) {
+                    self.err("reference.k2", "must be a finite number >= 0");
+                }
+            }
+            Reference::AdiabaticCure {
+                initial_temperature,
+                heat_of_reaction,
+                specific_heat,
+            } => {
+                self.positive("reference.initial_temperature", *initial_temperature);
+                self.positive("reference.heat_of_reaction", *heat_of_reaction);
+                self.positive("reference.specific_heat", *specific_heat);
+            }
         }
     }
 
@@ -540,8 +649,83 @@ impl Validator {
         out
     }
 
-    fn check_output_fields(&mut self, s: &Scene, materials: &BTreeMap<String, Arc<dyn Material>>) {
+    /// Builds the scene's physics sections in registry order and checks that every field an
+    /// operator or a material reads is created by some operator.
+    fn build_physics(
+        &mut self,
+        s: &Scene,
+        registry: &Registry,
+        materials: &BTreeMap<String, Arc<dyn Material>>,
+    ) -> Vec<(String, Arc<dyn Physics>)> {
+        let mut built = Vec::new();
+        for (name, section) in &s.physics {
+            let path = format!("physics.{name}");
+            let Some((order, factory)) = registry.physics(name) else {
+                let known: Vec<&str> = registry.physics_names().collect();
+                self.err(
+                    path,
+                    format!(
+                        "unknown physics `{name}` (registered: {})",
+                        if known.is_empty() {
+                            "none".to_string()
+                        } else {
+                            known.join(", ")
+                        }
+                    ),
+                );
+                continue;
+            };
+            match factory.build(section, &path, s) {
+                Ok(p) => built.push((order, name.clone(), p)),
+                Err(issues) => self.issues.extend(issues),
+            }
+        }
+        built.sort_by_key(|(order, _, _)| *order);
+        let created: BTreeSet<&str> = built
+            .iter()
+            .flat_map(|(_, _, p)| p.fields().into_iter().map(|f| f.name))
+            .collect();
+        for (_, name, p) in &built {
+            for field in p.requires() {
+                if !created.contains(field) {
+                    self.err(
+                        format!("physics.{name}"),
+                        format!("needs the particle field `{field}`, which no physics in this scene creates (add the physics that provides it, e.g. `physics.thermal` for `temperature`)"),
+                    );
+                }
+            }
+        }
+        for (name, m) in materials {
+            for read in m.shared_reads() {
+                if read.required && !created.contains(read.name) {
+                    self.err(
+                        format!("materials.{name}.type"),
+                        format!("this material needs the particle field `{}`, which no physics in this scene creates", read.name),
+                    );
+                }
+            }
+        }
+        if !s.solver.mechanics.is_dynamic() && built.is_empty() {
+            self.err(
+                "solver.mechanics",
+                "only a scene with physics (a `physics` section) may turn dynamics off",
+            );
+        }
+        built.into_iter().map(|(_, n, p)| (n, p)).collect()
+    }
+
+    fn check_output_fields(
+        &mut self,
+        s: &Scene,
+        materials: &BTreeMap<String, Arc<dyn Material>>,
+        physics: &[(String, Arc<dyn Physics>)],
+    ) {
         let mut known: BTreeSet<&str> = CORE_FIELDS.iter().copied().collect();
+        for (_, p) in physics {
+            for f in p.fields() {
+                known.insert(f.name);
+            }
+        }
         for m in materials.values() {
             for f in m.state_fields() {
                 known.insert(f.name);

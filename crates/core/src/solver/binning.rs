@@ -136,6 +136,9 @@ impl Reorder {
             if !p.initial_position.is_empty() {
                 gather(&mut p.initial_position[r.clone()], perm, visited);
             }
+            for field in p.shared.all_mut() {
+                gather(&mut field[r.clone()], perm, visited);
+            }
             let group = &mut p.groups[g];
             let n = range.len();
             for field in &mut group.state {

@@ -7,6 +7,7 @@
 mod binning;
 mod grid_to_particle;
 mod grid_update;
+mod interpolation;
 mod parallel;
 mod particle_to_grid;
 mod stats;
@@ -25,29 +26,46 @@ use crate::output::{
     RunInfo,
 };
 use crate::particles::{MaterialGroup, Particles};
+use crate::physics::{
+    GroupView, Interpolation, ParticleFields, ParticleView, Physics, PhysicsContext,
+    PhysicsReport, Stage,
+};
+use std::sync::Arc;
 use crate::reference::ReferenceTracker;
-use crate::scene::{KernelName, Scheme, Transfer, ValidatedScene};
+use crate::scene::{KernelName, Mechanics, Scheme, Transfer, ValidatedScene};
 use binning::{Reorder, SlabBins};
 use grid_to_particle::{G2pParams, grid_to_particle, measure};
 use grid_update::{GridParams, update_grid};
 use particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
 use stats::{KinematicStats, ParticleFault};
 use std::time::Instant;
-use stress_update::{StressStats, update_stress};
+use interpolation::build_interpolation;
+use stress_update::{StressScratch, StressStats, update_stress};
 use volume_averaging::VolumeAverage;
 
 pub use timestep::stable_time_step;
 
-/// Selects the 2D or 3D stress update of a [`Material`]; implemented for D = 2 and 3 so the
-/// solver can stay generic over the dimension.
+/// Selects the 2D or 3D entry points of plugin objects (a [`Material`]'s stress update, a
+/// [`Physics`] operator's stages); implemented for D = 2 and 3 so the solver can stay
+/// generic over the dimension.
 pub trait DimensionDispatch<const D: usize> {
     /// Updates one batch.
     fn update(&self, batch: StressBatch<'_, D>) -> BatchStats;
+    /// Runs one stage of a physics operator.
+    fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, D>);
+    /// A physics operator's stable step.
+    fn physics_stable_dt(physics: &dyn Physics, ctx: PhysicsContext<'_, D>) -> f64;
 }
 
 impl DimensionDispatch<2> for dyn Material {
     fn update(&self, batch: StressBatch<'_, 2>) -> BatchStats {
         self.update_stress_2d(batch)
+    }
+    fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, 2>) {
+        physics.stage_2d(stage, ctx)
+    }
+    fn physics_stable_dt(physics: &dyn Physics, ctx: PhysicsContext<'_, 2>) -> f64 {
+        physics.stable_dt_2d(ctx)
     }
 }
 
@@ -55,6 +73,18 @@ impl DimensionDispatch<3> for dyn Material {
     fn update(&self, batch: StressBatch<'_, 3>) -> BatchStats {
         self.update_stress_3d(batch)
     }
+    fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, 3>) {
+        physics.stage_3d(stage, ctx)
+    }
+    fn physics_stable_dt(physics: &dyn Physics, ctx: PhysicsContext<'_, 3>) -> f64 {
+        physics.stable_dt_3d(ctx)
+    }
+}
+
+/// One physics operator of a run with its grid scratch arrays.
+struct PhysicsSlot {
+    physics: Arc<dyn Physics>,
+    scratch: Vec<Vec<f64>>,
 }
 
 /// Failures that are not a run stopping on its own checks.
@@ -127,6 +157,7 @@ struct Settings<const D: usize> {
     max_speed: Option<f64>,
     max_energy_growth: f64,
     min_dt: f64,
+    mechanics: Mechanics,
 }
 
 /// An explicit MPM simulation in `D` dimensions with kernel `K`.
@@ -150,6 +181,18 @@ pub struct Simulation<const D: usize, K: Kernel> {
     stresses: StressStats,
     boundary_work: f64,
     volume_average: Option<VolumeAverage>,
+    physics: Vec<PhysicsSlot>,
+    interpolation: Interpolation<D>,
+    needs_interpolation: bool,
+    group_views: Vec<GroupView>,
+    report: PhysicsReport,
+    stress_scratch: StressScratch<D>,
+    /// Smallest stable step of the explicit physics operators, after the last step.
+    physics_dt: f64,
+    /// The clock obstacles see during quasi-static relaxation (the end of the step).
+    relax_time: Option<f64>,
+    /// Mechanical steps taken, for the reordering interval.
+    sort_counter: u64,
     _kernel: std::marker::PhantomData<K>,
 }
 
@@ -274,7 +317,13 @@ where
             )),
             id: Vec::with_capacity(n),
             groups: Vec::new(),
+            shared: ParticleFields::default(),
         };
+        for (_, physics) in &v.physics {
+            for spec in physics.fields() {
+                particles.shared.add(spec, n);
+            }
+        }
         // Bodies of one material are stored together so each law sees contiguous batches.
         let mut order: Vec<&crate::scene::BodyParticles> = v.bodies.iter().collect();
         order.sort_by_key(|b| &s.bodies[b.body].material);
@@ -373,7 +422,25 @@ where
             max_speed: s.stop.max_speed,
             max_energy_growth: s.stop.max_energy_growth,
             min_dt: s.stop.min_dt,
+            mechanics: s.solver.mechanics,
         };
+        let group_views = particles
+            .groups
+            .iter()
+            .map(|g| GroupView {
+                name: g.name.clone(),
+                range: g.range.clone(),
+            })
+            .collect();
+        let physics: Vec<PhysicsSlot> = v
+            .physics
+            .iter()
+            .map(|(_, p)| PhysicsSlot {
+                physics: p.clone(),
+                scratch: vec![vec![0.0; grid.len()]; p.grid_arrays()],
+            })
+            .collect();
+        let needs_interpolation = physics.iter().any(|p| p.physics.needs_interpolation());
         let bins = SlabBins::new(grid.nodes[0], K::SPAN, n);
         let grid_nodes = grid.len();
         Self {
@@ -395,6 +462,15 @@ where
             boundary_work: 0.0,
             volume_average: (s.solver.anti_locking == crate::scene::AntiLocking::Fbar)
                 .then(|| VolumeAverage::new(grid_nodes)),
+            physics,
+            interpolation: Interpolation::default(),
+            needs_interpolation,
+            group_views,
+            report: PhysicsReport::default(),
+            stress_scratch: StressScratch::default(),
+            physics_dt: f64::INFINITY,
+            relax_time: None,
+            sort_counter: 0,
             _kernel: std::marker::PhantomData,
         }
     }
@@ -426,13 +502,116 @@ where
             + self.kinematics.gravity_energy
     }
 
-    /// The largest stable step for the current state (Courant number 1).
+    /// The largest stable step for the current state (Courant number 1): the mechanical
+    /// bound (dynamics only) and every explicit physics operator's.
     pub fn stable_dt(&self) -> f64 {
+        match self.settings.mechanics {
+            Mechanics::Dynamic => self.mechanical_dt().min(self.physics_dt),
+            Mechanics::Off | Mechanics::QuasiStatic { .. } => self.physics_dt,
+        }
+    }
+
+    /// The mechanical (CFL) bound on the step at Courant number 1.
+    fn mechanical_dt(&self) -> f64 {
         stable_time_step(
             self.grid.dx,
             self.kinematics.max_speed,
             self.stresses.batch.max_wave_speed,
         )
+    }
+
+    /// Runs one stage of every physics operator, in order.
+    fn physics_stage(&mut self, stage: Stage, dt: f64) {
+        let Particles {
+            position,
+            mass,
+            volume0,
+            deformation_gradient,
+            stress,
+            shared,
+            ..
+        } = &mut self.particles;
+        for slot in &mut self.physics {
+            let ctx = PhysicsContext {
+                dt,
+                time: self.time + dt,
+                grid: &self.grid,
+                interpolation: &self.interpolation,
+                particles: ParticleView {
+                    position,
+                    mass,
+                    volume0,
+                    deformation_gradient,
+                    stress,
+                    groups: &self.group_views,
+                },
+                fields: shared,
+                scratch: &mut slot.scratch,
+                report: &mut self.report,
+            };
+            <dyn Material as DimensionDispatch<D>>::physics_stage(slot.physics.as_ref(), stage, ctx);
+        }
+    }
+
+    /// The smallest stable step of the physics operators (infinite for implicit ones).
+    fn compute_physics_dt(&mut self) -> f64 {
+        let Particles {
+            position,
+            mass,
+            volume0,
+            deformation_gradient,
+            stress,
+            shared,
+            ..
+        } = &mut self.particles;
+        let mut dt = f64::INFINITY;
+        for slot in &mut self.physics {
+            let ctx = PhysicsContext {
+                dt: 0.0,
+                time: self.time,
+                grid: &self.grid,
+                interpolation: &self.interpolation,
+                particles: ParticleView {
+                    position,
+                    mass,
+                    volume0,
+                    deformation_gradient,
+                    stress,
+                    groups: &self.group_views,
+                },
+                fields: shared,
+                scratch: &mut slot.scratch,
+                report: &mut self.report,
+            };
+            dt = dt.min(<dyn Material as DimensionDispatch<D>>::physics_stable_dt(
+                slot.physics.as_ref(),
+                ctx,
+            ));
+        }
+        dt
+    }
+
+    /// Advances every physics operator by `dt` (between the kinematic and the stress
+    /// update); `moved`: particles moved since the stencils were built.
+    fn advance_physics(&mut self, dt: f64, moved: bool) {
+        if self.physics.is_empty() {
+            return;
+        }
+        if self.needs_interpolation && (moved || self.interpolation.node.is_empty()) {
+            build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+        }
+        for stage in [Stage::Prepare, Stage::Advance, Stage::Finish] {
+            self.physics_stage(stage, dt);
+        }
+        self.physics_dt = self.compute_physics_dt();
+    }
+
+    /// Stress update of every material (none with mechanics off).
+    fn update_stresses(&mut self, dt: f64) {
+        if self.settings.mechanics != Mechanics::Off {
+            self.stresses = update_stress(&mut self.particles, dt, &mut self.stress_scratch);
+            self.boundary_work += self.stresses.free_strain_work;
+        }
     }
 
     fn inertia(&self) -> f64 {
@@ -465,7 +644,7 @@ where
             forces,
             flip: forces && self.settings.transfer == Transfer::Flip,
             damping: self.settings.damping,
-            time: self.time + dt,
+            time: self.relax_time.unwrap_or(self.time + dt),
         };
         update_grid(&mut self.grid, &self.boundaries, params)
     }
@@ -506,12 +685,32 @@ where
         }
     }
 
-    /// Advances one step of size `dt` with the scene's update scheme.
+    /// Advances one step of size `dt`: physics, and mechanics as the scene says.
     pub fn step(&mut self, dt: f64) {
+        match self.settings.mechanics {
+            Mechanics::Dynamic => self.mechanical_step(dt, true),
+            Mechanics::Off => self.advance_physics(dt, false),
+            Mechanics::QuasiStatic {
+                max_iterations,
+                tolerance,
+                damping,
+            } => {
+                self.advance_physics(dt, true);
+                self.relax(dt, max_iterations, tolerance, damping);
+            }
+        }
+        self.time += dt;
+        self.steps += 1;
+    }
+
+    /// One explicit mechanical step with the scene's update scheme; with `physics`, the
+    /// physics operators advance between the kinematic and the stress update.
+    fn mechanical_step(&mut self, dt: f64, physics: bool) {
         let sort = self.settings.sort_interval;
-        if sort > 0 && self.steps.is_multiple_of(sort as u64) {
+        if sort > 0 && self.sort_counter.is_multiple_of(sort as u64) {
             self.reorder.apply(&self.grid, &mut self.particles);
         }
+        self.sort_counter += 1;
         self.bins.rebuild::<D, K>(&self.grid, &self.particles);
         let force = if self.settings.mls {
             ForceTerm::Mls
@@ -525,14 +724,20 @@ where
                 self.grid_update(dt, true);
                 self.g2p(dt, true, true, true);
                 self.average_volume(true, dt);
-                self.stresses = update_stress(&mut self.particles, dt);
+                if physics {
+                    self.advance_physics(dt, true);
+                }
+                self.update_stresses(dt);
             }
             Scheme::Usf => {
                 self.p2g(dt, true, ForceTerm::None);
                 self.grid_update(dt, false);
                 self.g2p(dt, false, false, true);
                 self.average_volume(false, dt);
-                self.stresses = update_stress(&mut self.particles, dt);
+                if physics {
+                    self.advance_physics(dt, true);
+                }
+                self.update_stresses(dt);
                 self.grid.clear();
                 self.p2g(dt, true, force);
                 self.grid_update(dt, true);
@@ -550,16 +755,84 @@ where
                 self.g2p(dt, false, true, true);
                 self.kinematics.kinetic_energy = velocity_stats.kinetic_energy;
                 self.average_volume(true, dt);
-                self.stresses = update_stress(&mut self.particles, dt);
+                if physics {
+                    self.advance_physics(dt, true);
+                }
+                self.update_stresses(dt);
             }
         }
-        self.time += dt;
-        self.steps += 1;
     }
 
-    /// The stress and statistics of the initial state (F = I), before the first step.
+    /// Quasi-static mechanics: damped explicit iterations (pseudo-time, the clock stands at
+    /// the end of the step) until the kinetic energy is a `tolerance` fraction of the strain
+    /// energy; then the body is brought to rest. Not converging stops the run.
+    fn relax(&mut self, dt: f64, max_iterations: u32, tolerance: f64, damping: Option<f64>) {
+        let saved_damping = self.settings.damping;
+        let auto = || {
+            let extent = (0..D)
+                .map(|d| self.grid.cells[d] as f64 * self.grid.dx)
+                .fold(0.0, f64::max);
+            2.0 * std::f64::consts::PI * self.stresses.batch.max_wave_speed / extent.max(1e-300)
+        };
+        self.settings.damping = damping.unwrap_or_else(auto);
+        self.relax_time = Some(self.time + dt);
+        let mut peak = 0.0f64;
+        let mut converged = false;
+        let mut iterations = 0;
+        while iterations < max_iterations {
+            iterations += 1;
+            let pseudo = self.settings.cfl * self.mechanical_dt();
+            if !(pseudo.is_finite() && pseudo > 0.0) {
+                break;
+            }
+            self.mechanical_step(pseudo, false);
+            let kinetic = self.kinematics.kinetic_energy;
+            if !kinetic.is_finite() || self.check(0.0).is_some() {
+                break;
+            }
+            peak = peak.max(kinetic);
+            let scale = self.stresses.batch.strain_energy.max(peak);
+            if iterations >= 10 && kinetic <= tolerance * scale {
+                converged = true;
+                break;
+            }
+        }
+        self.relax_time = None;
+        self.settings.damping = saved_damping;
+        self.particles.velocity.fill(Vector::<D>::zeros());
+        self.particles.affine.fill(Matrix::<D>::zeros());
+        let stats = measure(&self.particles, self.settings.gravity);
+        self.kinematics.kinetic_energy = 0.0;
+        self.kinematics.max_speed = 0.0;
+        self.kinematics.momentum = stats.momentum;
+        self.report
+            .record_max("quasi_static.iterations", iterations as f64);
+        if !converged && self.check(0.0).is_none() {
+            self.report.fail(crate::physics::PhysicsFault {
+                field: "relaxation".into(),
+                particle: None,
+                value: iterations as f64,
+                message: format!(
+                    "quasi-static relaxation did not reach equilibrium in {max_iterations} iterations (raise solver.mechanics.quasi_static.max_iterations or the damping, or take smaller steps)"
+                ),
+            });
+        }
+    }
+
+    /// The stress and statistics of the initial state (F = I), before the first step; the
+    /// physics operators set their initial fields.
     fn initialise(&mut self) {
-        self.stresses = update_stress(&mut self.particles, 0.0);
+        if !self.physics.is_empty() {
+            if self.needs_interpolation {
+                build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+            }
+            for stage in [Stage::Initialise, Stage::Prepare, Stage::Finish] {
+                self.physics_stage(stage, 0.0);
+            }
+            self.physics_dt = self.compute_physics_dt();
+        }
+        self.update_stresses(0.0);
+        self.boundary_work = 0.0;
         self.kinematics = measure(&self.particles, self.settings.gravity);
     }
 
@@ -578,6 +851,29 @@ where
         }
         if let Some(f) = self.stresses.non_finite {
             return Some(make(f, "a particle stress became NaN or infinite"));
+        }
+        if let Some(fault) = &self.report.fault {
+            return Some(Diagnostic {
+                step: self.steps,
+                time: self.time,
+                particle: fault.particle.map(|p| self.particles.id[p] as usize),
+                field: fault.field.clone(),
+                value: fault.value,
+                message: fault.message.clone(),
+            });
+        }
+        for name in self.particles.shared.names() {
+            let values = self.particles.shared.get(name).unwrap_or(&[]);
+            if let Some(p) = values.iter().position(|v| !v.is_finite()) {
+                return Some(Diagnostic {
+                    step: self.steps,
+                    time: self.time,
+                    particle: Some(self.particles.id[p] as usize),
+                    field: (*name).into(),
+                    value: values[p],
+                    message: format!("the particle field `{name}` became NaN or infinite"),
+                });
+            }
         }
         if self.kinematics.min_det_f <= 0.0 {
             let f = ParticleFault {
@@ -608,7 +904,7 @@ where
                 message: format!("the largest particle speed exceeds stop.max_speed = {limit}"),
             });
         }
-        if energy_growth > self.settings.max_energy_growth {
+        if self.settings.mechanics.is_dynamic() && energy_growth > self.settings.max_energy_growth {
             return Some(Diagnostic {
                 step: self.steps,
                 time: self.time,
@@ -669,6 +965,14 @@ where
                     dt / stable,
                     self.settings.max_cfl
                 ),
+            });
+        }
+        if self.settings.fixed_dt.is_none() && !stable.is_finite() {
+            return Err(RunError::Refused {
+                path: "solver.dt".into(),
+                message: "needed: nothing in this scene bounds the time step (mechanics is not \
+                          dynamic and every physics operator is implicit), so give the step size"
+                    .into(),
             });
         }
         Ok(())
@@ -827,6 +1131,7 @@ where
             frames: frame,
             threads: rayon::current_num_threads(),
             diagnostic,
+            physics: self.report.maxima.iter().cloned().collect(),
         };
         sink.finish(&metrics)?;
         Ok(metrics)
@@ -842,6 +1147,7 @@ fn output_fields<const D: usize>(names: &[String], particles: &Particles<D>) -> 
                 "x" | "v" => vec![D],
                 "stress" | "F" => vec![D, D],
                 "J" | "mass" | "volume" | "material" => vec![],
+                other if particles.shared.contains(other) => vec![],
                 other => {
                     let comps = particles
                         .groups
@@ -912,6 +1218,12 @@ fn fill_staging<const D: usize>(p: &Particles<D>, fields: &[FieldInfo], staging:
                     for i in group.range.clone() {
                         out[p.id[i] as usize] = g as f64;
                     }
+                }
+            }
+            name if p.shared.contains(name) => {
+                let values = p.shared.get(name).unwrap_or(&[]);
+                for (i, v) in values.iter().enumerate() {
+                    out[p.id[i] as usize] = *v;
                 }
             }
             name => {

@@ -1,10 +1,15 @@
 //! Stress update: every material group's law updates its particles' stress, one batch of
-//! particles per call, batches in parallel.
+//! particles per call, batches in parallel. When a physics creates a free strain (thermal
+//! expansion, shrinkage) the laws see the mechanical part of F only.
 
 use super::parallel::SharedSlice;
 use super::stats::ParticleFault;
-use crate::material::{BatchStats, MAX_STATE_FIELDS, StateSlices, StressBatch};
+use crate::material::{
+    BatchStats, MAX_SHARED_READS, MAX_STATE_FIELDS, StateSlices, StressBatch,
+};
+use crate::math::Matrix;
 use crate::particles::Particles;
+use crate::physics::{FREE_STRAIN, PLASTIC_WORK};
 use crate::solver::DimensionDispatch;
 use rayon::prelude::*;
 
@@ -16,38 +21,93 @@ const BATCH: usize = 1024;
 pub(crate) struct StressStats {
     pub batch: BatchStats,
     pub non_finite: Option<ParticleFault>,
+    /// Work the change of free strain did on the stress in this update (it enters the energy
+    /// balance like work done from outside), J (J/m in 2D).
+    pub free_strain_work: f64,
+}
+
+/// Buffers of the stress update, allocated only when the scene has a free strain.
+#[derive(Default)]
+pub(crate) struct StressScratch<const D: usize> {
+    /// Mechanical deformation gradient `F / (1 + free strain)`.
+    mechanical: Vec<Matrix<D>>,
+    /// Free strain at the last update.
+    applied: Vec<f64>,
 }
 
 /// Runs every material on its particles.
-pub(crate) fn update_stress<const D: usize>(particles: &mut Particles<D>, dt: f64) -> StressStats
+pub(crate) fn update_stress<const D: usize>(
+    particles: &mut Particles<D>,
+    dt: f64,
+    scratch: &mut StressScratch<D>,
+) -> StressStats
 where
     dyn crate::material::Material: DimensionDispatch<D>,
 {
+    let n = particles.len();
+    let mut plastic_work = particles.shared.take(PLASTIC_WORK);
     let Particles {
         deformation_gradient,
         velocity_gradient,
         volume0,
         stress,
         groups,
+        shared,
         ..
     } = particles;
+    let free_strain = shared.get(FREE_STRAIN);
+    let mut free_strain_work = 0.0;
+    if let Some(fs) = free_strain {
+        scratch.mechanical.resize(n, Matrix::<D>::identity());
+        scratch.applied.resize(n, 0.0);
+        free_strain_work = scratch
+            .mechanical
+            .par_iter_mut()
+            .zip(scratch.applied.par_iter_mut())
+            .enumerate()
+            .map(|(p, (fm, applied))| {
+                let f = &deformation_gradient[p];
+                *fm = f * (1.0 / (1.0 + fs[p]));
+                let trace: f64 = (0..D).map(|d| stress[p][(d, d)]).sum();
+                let work = -trace * (fs[p] - *applied) * crate::math::determinant(f) * volume0[p];
+                *applied = fs[p];
+                work
+            })
+            .sum();
+    }
+    let kinematic: &[Matrix<D>] = if free_strain.is_some() {
+        &scratch.mechanical
+    } else {
+        deformation_gradient
+    };
     let stress_out = SharedSlice::new(stress);
-    let mut total = StressStats::default();
+    let has_work = n > 0 && plastic_work.len() == n;
+    let work_out = SharedSlice::new(&mut plastic_work);
+    let mut total = StressStats {
+        free_strain_work,
+        ..StressStats::default()
+    };
     for group in groups.iter_mut() {
         let range = group.range.clone();
-        let n = range.len();
+        let count = range.len();
         let material = group.material.clone();
         let specs = material.state_fields();
+        let reads: [Option<&[f64]>; MAX_SHARED_READS] = std::array::from_fn(|k| {
+            material
+                .shared_reads()
+                .get(k)
+                .and_then(|r| shared.get(r.name))
+        });
         let mut state_out = [None; MAX_STATE_FIELDS];
         for (k, field) in group.state.iter_mut().enumerate() {
             state_out[k] = Some(SharedSlice::new(field));
         }
         let comps: [usize; MAX_STATE_FIELDS] =
             std::array::from_fn(|k| specs.get(k).map_or(0, |s| s.components));
-        let stats = (0..n.div_ceil(BATCH))
+        let stats = (0..count.div_ceil(BATCH))
             .into_par_iter()
             .map(|b| {
-                let local = b * BATCH..((b + 1) * BATCH).min(n);
+                let local = b * BATCH..((b + 1) * BATCH).min(count);
                 let global = range.start + local.start..range.start + local.end;
                 // SAFETY: batches are disjoint particle ranges of this group.
                 let stress = unsafe { stress_out.range(global.clone()) };
@@ -56,9 +116,15 @@ where
                     Some(s) => unsafe { s.range(local.start * comps[k]..local.end * comps[k]) },
                     None => &mut [][..],
                 });
+                let plastic_work = if has_work {
+                    // SAFETY: as above.
+                    unsafe { work_out.range(global.clone()) }
+                } else {
+                    &mut [][..]
+                };
                 let batch = StressBatch {
                     dt,
-                    deformation_gradient: &deformation_gradient[global.clone()],
+                    deformation_gradient: &kinematic[global.clone()],
                     velocity_gradient: if velocity_gradient.is_empty() {
                         &[]
                     } else {
@@ -67,6 +133,8 @@ where
                     volume0: &volume0[global.clone()],
                     stress,
                     state: StateSlices { fields },
+                    shared: std::array::from_fn(|k| reads[k].map_or(&[][..], |f| &f[global.clone()])),
+                    plastic_work,
                 };
                 let batch_stats = material.as_ref().update(batch);
                 // SAFETY: as above (the batch's borrow ended with the call).
@@ -82,14 +150,17 @@ where
                 StressStats {
                     batch: batch_stats,
                     non_finite,
+                    free_strain_work: 0.0,
                 }
             })
             .reduce(StressStats::default, |a, b| StressStats {
                 batch: a.batch.merge(b.batch),
                 non_finite: ParticleFault::first(a.non_finite, b.non_finite),
+                free_strain_work: 0.0,
             });
         total.batch = total.batch.merge(stats.batch);
         total.non_finite = ParticleFault::first(total.non_finite, stats.non_finite);
     }
+    particles.shared.restore(PLASTIC_WORK, plastic_work);
     total
 }

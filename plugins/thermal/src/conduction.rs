@@ -1,0 +1,367 @@
+//! The conduction operator: P2G of heat capacity and thermal energy, the grid solve
+//! (explicit or implicit), G2P of the temperature change, and the thermal free strain.
+
+use crate::boundary::Face;
+use crate::conjugate_gradient::{Work, solve};
+use crate::parameters::{Integrator, ThermalParameters};
+use mpm_core::math::{Matrix, Vector, determinant};
+use mpm_core::physics::{
+    FREE_STRAIN, Interpolation, PLASTIC_WORK, PhysicsContext, PhysicsFault, PhysicsLaw,
+    SharedFieldSpec, Stage,
+};
+use mpm_core::scene::Scene;
+
+/// Grid scratch arrays, by index.
+const CAPACITY: usize = 0;
+const ARRAYS: usize = 11;
+/// Temperatures at or above this stop the run: the conduction has diverged.
+const MAX_TEMPERATURE: f64 = 1e5;
+
+/// Heat conduction on the MPM grid (see the crate documentation).
+pub struct Thermal {
+    params: ThermalParameters,
+    domain_min: Vec<f64>,
+    domain_max: Vec<f64>,
+    expansion: bool,
+    plastic_heating: bool,
+}
+
+impl Thermal {
+    /// The operator for checked parameters.
+    pub fn new(params: ThermalParameters, scene: &Scene) -> Self {
+        let expansion = params.materials.values().any(|m| m.expansion != 0.0);
+        let plastic_heating = params
+            .materials
+            .values()
+            .any(|m| m.taylor_quinney.is_some_and(|b| b > 0.0));
+        Self {
+            params,
+            domain_min: scene.domain.min.clone(),
+            domain_max: scene.domain.max.clone(),
+            expansion,
+            plastic_heating,
+        }
+    }
+
+    fn initialise<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
+        let Some(temperature) = ctx.fields.get_mut("temperature") else {
+            return;
+        };
+        for g in ctx.particles.groups {
+            if let Some(m) = self.params.materials.get(&g.name) {
+                temperature[g.range.clone()].fill(m.initial_temperature);
+            }
+        }
+    }
+
+    /// Conductivity and specific heat at the particles' temperatures.
+    fn properties<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
+        let [Some(t), Some(k), Some(c)] =
+            ctx.fields
+                .many_mut(["temperature", "conductivity", "specific_heat"])
+        else {
+            return;
+        };
+        for g in ctx.particles.groups {
+            let Some(m) = self.params.materials.get(&g.name) else {
+                continue;
+            };
+            for p in g.range.clone() {
+                k[p] = m.conductivity.at(t[p]);
+                c[p] = m.specific_heat.at(t[p]);
+            }
+        }
+    }
+
+    /// Resets the free strain to the thermal part (other physics add theirs afterwards).
+    fn free_strain<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
+        let [Some(t), Some(fs)] = ctx.fields.many_mut(["temperature", FREE_STRAIN]) else {
+            return;
+        };
+        for g in ctx.particles.groups {
+            let Some(m) = self.params.materials.get(&g.name) else {
+                fs[g.range.clone()].fill(0.0);
+                continue;
+            };
+            let reference = m.reference_temperature.unwrap_or(m.initial_temperature);
+            for p in g.range.clone() {
+                fs[p] = m.expansion * (t[p] - reference);
+            }
+        }
+    }
+
+    /// One conduction step.
+    fn conduct<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
+        let PhysicsContext {
+            dt,
+            time,
+            grid,
+            interpolation: it,
+            particles: pv,
+            fields,
+            scratch,
+            report,
+        } = ctx;
+        if dt <= 0.0 {
+            return;
+        }
+        let plastic_work: Vec<f64> = if self.plastic_heating {
+            fields.get(PLASTIC_WORK).map(<[f64]>::to_vec).unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        let [Some(temperature), Some(conductivity), Some(specific_heat)] =
+            fields.many_mut(["temperature", "conductivity", "specific_heat"])
+        else {
+            return;
+        };
+        let [cap, t_old, t_new, source, convection, fixed, kdiag, r, z, p_dir, ap] = scratch
+        else {
+            return;
+        };
+        debug_assert_eq!(CAPACITY, 0);
+        for a in [&mut *cap, &mut *t_old, &mut *source, &mut *convection, &mut *kdiag] {
+            a.fill(0.0);
+        }
+        fixed.fill(f64::NAN);
+        let volume = |p: usize| determinant(&pv.deformation_gradient[p]) * pv.volume0[p];
+
+        // P2G: heat capacity, thermal energy, heat sources, conductance diagonal.
+        for g in pv.groups {
+            let Some(m) = self.params.materials.get(&g.name) else {
+                continue;
+            };
+            let beta = m.taylor_quinney.unwrap_or(0.0);
+            for p in g.range.clone() {
+                let v = volume(p);
+                let mc = pv.mass[p] * specific_heat[p];
+                let mut q = m.heat_source * v;
+                if beta > 0.0 && !plastic_work.is_empty() {
+                    q += beta * plastic_work[p] * pv.volume0[p] / dt;
+                }
+                let kv = conductivity[p] * v;
+                for e in it.entries(p) {
+                    let i = it.node[e] as usize;
+                    let w = it.weight[e];
+                    cap[i] += w * mc;
+                    t_old[i] += w * mc * temperature[p];
+                    source[i] += w * q;
+                    kdiag[i] += kv * it.gradient[e].norm_squared();
+                }
+            }
+        }
+        for i in 0..cap.len() {
+            if cap[i] > 0.0 {
+                t_old[i] /= cap[i];
+            }
+        }
+
+        // Wall conditions where the body touches the faces.
+        let area = grid.dx.powi(D as i32 - 1);
+        for b in &self.params.boundaries {
+            for side in &b.sides {
+                let face = Face::new(*side, grid, &self.domain_min, &self.domain_max);
+                for i in 0..cap.len() {
+                    if cap[i] <= 0.0 {
+                        continue;
+                    }
+                    let c = grid.coords(i)[face.axis];
+                    if let Some(t) = &b.temperature {
+                        if face.on_or_behind(c) {
+                            fixed[i] = t.at(time);
+                        }
+                    } else if face.on(c) {
+                        if let Some(q) = &b.heat_flux {
+                            source[i] += q.at(time) * area;
+                        }
+                        if let Some(conv) = &b.convection {
+                            let h = conv.coefficient * area;
+                            convection[i] += h;
+                            source[i] += h * conv.ambient.at(time);
+                        }
+                    }
+                }
+            }
+        }
+
+        let k_of = |p: usize| conductivity[p];
+        match self.params.integrator {
+            Integrator::Explicit => {
+                conductance(it, pv.deformation_gradient, pv.volume0, &k_of, t_old, ap);
+                for i in 0..cap.len() {
+                    t_new[i] = if cap[i] <= 0.0 {
+                        0.0
+                    } else if fixed[i].is_finite() {
+                        fixed[i]
+                    } else {
+                        t_old[i] + dt * (source[i] - ap[i] - convection[i] * t_old[i]) / cap[i]
+                    };
+                }
+            }
+            Integrator::Implicit => {
+                // (C + dt·(K + H)) T = C·T_old + dt·Q, fixed nodes held.
+                for i in 0..cap.len() {
+                    source[i] = cap[i] * t_old[i] + dt * source[i];
+                    let free = cap[i] > 0.0 && !fixed[i].is_finite();
+                    kdiag[i] = if free {
+                        1.0 / (cap[i] + dt * (kdiag[i] + convection[i]))
+                    } else {
+                        0.0
+                    };
+                    t_new[i] = if cap[i] <= 0.0 {
+                        0.0
+                    } else if fixed[i].is_finite() {
+                        fixed[i]
+                    } else {
+                        t_old[i]
+                    };
+                }
+                let (cap, convection) = (&*cap, &*convection);
+                let apply = |x: &[f64], y: &mut [f64]| {
+                    conductance(it, pv.deformation_gradient, pv.volume0, &k_of, x, y);
+                    for i in 0..x.len() {
+                        y[i] = cap[i] * x[i] + dt * (y[i] + convection[i] * x[i]);
+                    }
+                };
+                let result = solve(
+                    apply,
+                    kdiag,
+                    source,
+                    t_new,
+                    Work {
+                        r,
+                        z,
+                        p: p_dir,
+                        ap,
+                    },
+                    self.params.tolerance,
+                    self.params.max_iterations,
+                );
+                report.record_max("thermal.solver_iterations", result.iterations as f64);
+                if !result.converged {
+                    report.fail(PhysicsFault {
+                        field: "temperature".into(),
+                        particle: None,
+                        value: result.iterations as f64,
+                        message: format!(
+                            "the implicit heat solve did not converge in {} iterations (raise physics.thermal.max_iterations or loosen tolerance)",
+                            self.params.max_iterations
+                        ),
+                    });
+                }
+            }
+        }
+
+        // G2P: the nodal temperature change (not the value: no smoothing of the field).
+        for p in 0..temperature.len() {
+            let mut change = 0.0;
+            for e in it.entries(p) {
+                let i = it.node[e] as usize;
+                change += it.weight[e] * (t_new[i] - t_old[i]);
+            }
+            temperature[p] += change;
+        }
+        if let Some(p) = temperature
+            .iter()
+            .position(|t| !(*t > 0.0 && *t < MAX_TEMPERATURE))
+        {
+            report.fail(PhysicsFault {
+                field: "temperature".into(),
+                particle: Some(p),
+                value: temperature[p],
+                message: format!(
+                    "the temperature left the range (0, {MAX_TEMPERATURE:e}) K: the conduction diverged (with the explicit integrator: the step is above its stable step; use solver.cfl or the implicit integrator)"
+                ),
+            });
+        }
+    }
+}
+
+/// `y = K x`: the conductance matrix `K_ij = Σ_p V_p k_p ∇w_ip·∇w_jp` applied matrix-free
+/// through the particles' temperature gradients.
+fn conductance<const D: usize>(
+    it: &Interpolation<D>,
+    deformation_gradient: &[Matrix<D>],
+    volume0: &[f64],
+    conductivity: &dyn Fn(usize) -> f64,
+    x: &[f64],
+    y: &mut [f64],
+) {
+    y.fill(0.0);
+    for p in 0..volume0.len() {
+        let mut gradient = Vector::<D>::zeros();
+        for e in it.entries(p) {
+            gradient += it.gradient[e] * x[it.node[e] as usize];
+        }
+        let s = conductivity(p) * determinant(&deformation_gradient[p]) * volume0[p];
+        for e in it.entries(p) {
+            y[it.node[e] as usize] += s * it.gradient[e].dot(&gradient);
+        }
+    }
+}
+
+impl PhysicsLaw for Thermal {
+    fn fields(&self) -> Vec<SharedFieldSpec> {
+        let mut f = vec![
+            SharedFieldSpec {
+                name: "temperature",
+                initial: 0.0,
+            },
+            SharedFieldSpec {
+                name: "conductivity",
+                initial: 0.0,
+            },
+            SharedFieldSpec {
+                name: "specific_heat",
+                initial: 0.0,
+            },
+        ];
+        if self.expansion {
+            f.push(SharedFieldSpec {
+                name: FREE_STRAIN,
+                initial: 0.0,
+            });
+        }
+        if self.plastic_heating {
+            f.push(SharedFieldSpec {
+                name: PLASTIC_WORK,
+                initial: 0.0,
+            });
+        }
+        f
+    }
+
+    fn grid_arrays(&self) -> usize {
+        ARRAYS
+    }
+
+    fn stable_dt<const D: usize>(&self, ctx: PhysicsContext<'_, D>) -> f64 {
+        if self.params.integrator == Integrator::Implicit {
+            return f64::INFINITY;
+        }
+        let (Some(k), Some(c)) = (
+            ctx.fields.get("conductivity"),
+            ctx.fields.get("specific_heat"),
+        ) else {
+            return f64::INFINITY;
+        };
+        let pv = &ctx.particles;
+        let dx2 = ctx.grid.dx * ctx.grid.dx;
+        let mut dt = f64::INFINITY;
+        for p in 0..pv.mass.len() {
+            let v = determinant(&pv.deformation_gradient[p]) * pv.volume0[p];
+            let rho_c = pv.mass[p] / v * c[p];
+            dt = dt.min(rho_c * dx2 / (2.0 * D as f64 * k[p]));
+        }
+        dt
+    }
+
+    fn stage<const D: usize>(&self, stage: Stage, ctx: PhysicsContext<'_, D>) {
+        match stage {
+            Stage::Initialise => self.initialise(ctx),
+            Stage::Prepare => self.properties(ctx),
+            Stage::Advance => self.conduct(ctx),
+            Stage::Finish => self.free_strain(ctx),
+        }
+    }
+}

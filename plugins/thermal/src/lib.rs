@@ -1,0 +1,60 @@
+//! Heat conduction for mpm.
+//!
+//! Particles carry temperature, conductivity and specific heat; conduction is solved on the
+//! MPM grid through the same shape functions as mechanics: heat capacity and thermal energy
+//! go to the nodes (P2G), the conductance comes from the shape-function gradients, and the
+//! nodal temperature change comes back to the particles (G2P). Two integrators: explicit
+//! (its stable step enters the run's step choice) and implicit backward Euler solved with
+//! matrix-free preconditioned conjugate gradients, stable at any step.
+//!
+//! Scene section: `physics.thermal` ([`ThermalParameters`]).
+
+mod boundary;
+mod conduction;
+mod conjugate_gradient;
+mod parameters;
+
+pub use boundary::{Convection, ThermalBoundary};
+pub use conduction::Thermal;
+pub use parameters::{Integrator, ThermalMaterial, ThermalParameters};
+
+use mpm_core::physics::{Physics, PhysicsFactory, TypedPhysicsFactory};
+use mpm_core::plugin::{MaterialFactory, Plugin};
+use mpm_core::scene::{Issue, Scene};
+use std::sync::Arc;
+
+/// The plugin: registers the `thermal` physics.
+pub struct ThermalPlugin;
+
+impl Plugin for ThermalPlugin {
+    fn name(&self) -> &'static str {
+        "thermal"
+    }
+
+    fn description(&self) -> &'static str {
+        "heat conduction (explicit or implicit), wall temperature/flux/convection, heat sources, plastic heating, thermal expansion"
+    }
+
+    fn materials(&self) -> Vec<Box<dyn MaterialFactory>> {
+        Vec::new()
+    }
+
+    fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
+        vec![Box::new(TypedPhysicsFactory::new("thermal", build))]
+    }
+}
+
+fn build(
+    params: ThermalParameters,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Physics>, Vec<Issue>> {
+    let issues = params.check(path, scene);
+    if !issues.is_empty() {
+        return Err(issues);
+    }
+    Ok(Arc::new(Thermal::new(params, scene)))
+}
+
+#[cfg(test)]
+mod tests;
