@@ -27,6 +27,9 @@ pub fn default_registry() -> Registry {
     registry
         .register(Box::new(mpm_thermal::ThermalPlugin))
         .expect("built-in plugins have distinct names");
+    registry
+        .register(Box::new(mpm_phase_change::PhaseChangePlugin))
+        .expect("built-in plugins have distinct names");
     registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
     registry
 }

@@ -1,0 +1,186 @@
+//! `phase_mixture`: a material whose stress moves from a viscous fluid to an elastic solid
+//! as its solid fraction (from the phase-change physics) rises.
+//!
+//! σ = σ_solid + (1 − f)·(2η·dev D + K_l·ln J·I). The solid part is incremental
+//! (hypoelastic, Jaumann-rotated): each step adds f·(λ tr Δε I + 2μ Δε), so a particle that
+//! solidifies carries no stress until it deforms after solidifying, and only strain after
+//! gelation loads a curing resin. The laws see the mechanical F (free strains removed).
+
+use mpm_core::material::{
+    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, lame_parameters,
+};
+use mpm_core::math::{Matrix, determinant, inverse};
+use mpm_core::plugin::check_elastic_constants;
+use mpm_core::scene::Issue;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Scene section of a `phase_mixture` material.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseMixtureParameters {
+    /// Mass density, kg/m³ (of the starting phase).
+    pub density: f64,
+    /// Elastic constants of the solid.
+    pub solid: SolidPhase,
+    /// The liquid.
+    pub liquid: LiquidPhase,
+}
+
+/// Elastic constants of the solid phase.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SolidPhase {
+    /// Young's modulus, Pa.
+    pub youngs_modulus: f64,
+    /// Poisson's ratio, in (-1, 0.5).
+    pub poisson_ratio: f64,
+}
+
+/// The liquid phase: Newtonian viscosity and a bulk modulus (weak compressibility).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LiquidPhase {
+    /// Dynamic viscosity, Pa·s.
+    pub viscosity: f64,
+    /// Bulk modulus, Pa.
+    pub bulk_modulus: f64,
+}
+
+impl PhaseMixtureParameters {
+    /// Problems at `path`.
+    pub fn check(&self, path: &str) -> Vec<Issue> {
+        let mut issues = check_elastic_constants(
+            path,
+            self.density,
+            self.solid.youngs_modulus,
+            self.solid.poisson_ratio,
+        );
+        for i in &mut issues {
+            if !i.path.ends_with(".density") {
+                i.path = i.path.replacen(path, &format!("{path}.solid"), 1);
+            }
+        }
+        for (name, v) in [
+            ("viscosity", self.liquid.viscosity),
+            ("bulk_modulus", self.liquid.bulk_modulus),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                issues.push(Issue::new(
+                    format!("{path}.liquid.{name}"),
+                    format!("must be a finite number >= 0 (got {v})"),
+                ));
+            }
+        }
+        issues
+    }
+}
+
+/// The law (see the module documentation).
+pub struct PhaseMixture {
+    params: PhaseMixtureParameters,
+    lambda: f64,
+    mu: f64,
+    fields: [FieldSpec; 2],
+}
+
+impl PhaseMixture {
+    /// The law for checked parameters.
+    pub fn new(params: PhaseMixtureParameters) -> Self {
+        let (lambda, mu) = lame_parameters(params.solid.youngs_modulus, params.solid.poisson_ratio);
+        Self {
+            params,
+            lambda,
+            mu,
+            fields: [
+                FieldSpec {
+                    name: "previous_F",
+                    components: 9,
+                    initial: FieldInit::Identity,
+                },
+                FieldSpec {
+                    name: "solid_stress",
+                    components: 9,
+                    initial: FieldInit::Zero,
+                },
+            ],
+        }
+    }
+}
+
+impl ConstitutiveLaw for PhaseMixture {
+    fn density(&self) -> f64 {
+        self.params.density
+    }
+
+    fn state_fields(&self) -> &[FieldSpec] {
+        &self.fields
+    }
+
+    fn shared_reads(&self) -> &[SharedRead] {
+        &[SharedRead {
+            name: "solid_fraction",
+            required: true,
+        }]
+    }
+
+    fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
+        let [previous, solid, ..] = batch.state.fields;
+        let fraction = batch.shared[0];
+        let (lambda, mu) = (self.lambda, self.mu);
+        let (eta, bulk) = (self.params.liquid.viscosity, self.params.liquid.bulk_modulus);
+        let load = |slot: &[f64]| {
+            let mut m = Matrix::<D>::zeros();
+            for r in 0..D {
+                for c in 0..D {
+                    m[(r, c)] = slot[r * D + c];
+                }
+            }
+            m
+        };
+        let store = |slot: &mut [f64], m: &Matrix<D>| {
+            for r in 0..D {
+                for c in 0..D {
+                    slot[r * D + c] = m[(r, c)];
+                }
+            }
+        };
+        let identity = Matrix::<D>::identity();
+        let mut energy = 0.0;
+        let mut stiffest = 0.0f64;
+        for (k, (f, stress)) in batch
+            .deformation_gradient
+            .iter()
+            .zip(batch.stress.iter_mut())
+            .enumerate()
+        {
+            let phi = fraction.get(k).copied().unwrap_or(1.0).clamp(0.0, 1.0);
+            let f_prev = load(&previous[9 * k..9 * k + 9]);
+            let increment = inverse(&f_prev).map_or(identity, |inv| f * inv);
+            let strain = (increment + increment.transpose()) * 0.5 - identity;
+            let spin = (increment - increment.transpose()) * 0.5;
+            let mut s = load(&solid[9 * k..9 * k + 9]);
+            s += spin * s - s * spin;
+            s += (identity * (lambda * strain.trace()) + strain * (2.0 * mu)) * phi;
+            store(&mut solid[9 * k..9 * k + 9], &s);
+            store(&mut previous[9 * k..9 * k + 9], f);
+            let j = determinant(f);
+            let rate = if batch.dt > 0.0 {
+                strain / batch.dt
+            } else {
+                Matrix::<D>::zeros()
+            };
+            let deviatoric_rate = rate - identity * (rate.trace() / 3.0);
+            let ln_j = j.max(1e-300).ln();
+            let fluid = deviatoric_rate * (2.0 * eta) + identity * (bulk * ln_j);
+            *stress = s + fluid * (1.0 - phi);
+            energy += batch.volume0[k]
+                * (s.norm_squared() / (4.0 * mu) + 0.5 * (1.0 - phi) * bulk * ln_j * ln_j);
+            stiffest = stiffest.max(phi * (lambda + 2.0 * mu) + (1.0 - phi) * bulk);
+        }
+        BatchStats {
+            strain_energy: energy,
+            max_wave_speed: (stiffest / self.params.density).sqrt(),
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! Unit tests of the phase-change pieces against closed forms.
+
+use crate::cure::{CureKinetics, CureParameters, GlassTransition};
+use crate::melting::{Melting, PhaseProperties};
+use mpm_core::closed_forms::kamal_sourour_isothermal;
+
+fn wax() -> Melting {
+    let phase = PhaseProperties {
+        conductivity: 1.0,
+        specific_heat: 2000.0,
+        density: 900.0,
+    };
+    Melting {
+        melt_temperature: 300.0,
+        latent_heat: 2e5,
+        solid: phase,
+        liquid: phase,
+        initial_solid_fraction: 1.0,
+    }
+}
+
+/// The enthalpy update conserves c·T + (1 − f)·L and melts at constant temperature.
+#[test]
+fn latent_heat_is_conserved_while_melting_and_freezing() {
+    let m = wax();
+    let c = 2000.0;
+    let h = |t: f64, f: f64| c * t + (1.0 - f) * m.latent_heat;
+    // 10 K of superheat melts 10·2000/2e5 = 0.1 of the particle.
+    let (t, f) = m.recover(310.0, 1.0, c);
+    assert_eq!(t, 300.0);
+    assert!((f - 0.9).abs() < 1e-12);
+    assert!((h(t, f) - h(310.0, 1.0)).abs() < 1e-6);
+    // Far past melting: all melts, the rest heats the liquid.
+    let (t, f) = m.recover(500.0, 1.0, c);
+    assert_eq!(f, 0.0);
+    assert!((h(t, f) - h(500.0, 1.0)).abs() < 1e-6);
+    // Freezing gives the heat back.
+    let (t, f) = m.recover(295.0, 0.5, c);
+    assert_eq!(t, 300.0);
+    assert!((f - 0.55).abs() < 1e-12);
+}
+
+fn resin() -> CureParameters {
+    CureParameters {
+        kinetics: CureKinetics {
+            a1: 2e5,
+            e1: 6e4,
+            a2: 5e6,
+            e2: 6e4,
+            m: 1.0,
+            n: 1.0,
+        },
+        heat_of_reaction: 4e5,
+        initial_cure: 0.0,
+        gel_point: 0.6,
+        glass_transition: Some(GlassTransition {
+            tg0: 250.0,
+            tg_inf: 420.0,
+            lambda: 0.4,
+        }),
+        shrinkage: 0.03,
+    }
+}
+
+/// Isothermal cure (no heat of reaction) follows the m = n = 1 closed form.
+#[test]
+fn isothermal_cure_matches_the_closed_form() {
+    let mut c = resin();
+    c.heat_of_reaction = 0.0;
+    let t = 420.0;
+    let (k1, k2) = c.kinetics.rate_constants(t);
+    let (mut a, mut temp) = (0.0, t);
+    let dt = 5.0;
+    for step in 1..=200 {
+        (a, temp) = c.advance(a, temp, 1500.0, dt);
+        let exact = kamal_sourour_isothermal(k1, k2, step as f64 * dt);
+        assert!((a - exact).abs() < 1e-6, "step {step}: {a} vs {exact}");
+    }
+    assert_eq!(temp, t);
+    assert!(a > 0.9, "{a}");
+}
+
+/// Adiabatic cure: T rises by H/c per unit of cure.
+#[test]
+fn adiabatic_cure_heats_by_the_heat_of_reaction() {
+    let c = resin();
+    let cp = 1500.0;
+    let (mut a, mut t) = (0.0, 380.0);
+    for _ in 0..400 {
+        (a, t) = c.advance(a, t, cp, 2.0);
+    }
+    assert!(a > 0.95, "{a}");
+    assert!((t - 380.0 - c.heat_of_reaction / cp * a).abs() < 1e-9);
+}
+
+/// DiBenedetto: Tg0 at no cure, Tg∞ at full cure, λ sets the curvature.
+#[test]
+fn glass_transition_spans_its_limits() {
+    let g = resin().glass_transition.unwrap();
+    assert_eq!(g.at(0.0), 250.0);
+    assert!((g.at(1.0) - 420.0).abs() < 1e-9);
+    assert!(g.at(0.5) < 250.0 + 0.5 * 170.0);
+}
