@@ -187,6 +187,79 @@ fn impact(speed: f64) -> Value {
     })
 }
 
+/// A 2D bar of wax-like material along x conducting heat; `thermal` is merged into its
+/// `physics.thermal` section and `extra` into the scene.
+fn heat_bar(name: &str, thermal: Value, extra: Value) -> Value {
+    let mut s = json!({
+        "name": name, "dimension": 2,
+        "domain": {"min": [0, 0], "max": [0.02, 0.001], "cell_size": 0.0005},
+        "solver": {"end_time": 20.0, "kernel": "linear", "mechanics": "off"},
+        "materials": {"wax": elastic("linear_elastic", 1e9, 0.3, 1000.0)},
+        "physics": {"thermal": {
+            "materials": {"wax": {"conductivity": 1.0, "specific_heat": 1000.0,
+                                  "initial_temperature": 300.0}},
+            "boundaries": [{"sides": ["x-"], "temperature": 600.0}]}},
+        "bodies": [{"material": "wax", "shape": {"box": {"min": [0, 0], "max": [0.02, 0.001]}}}],
+        "output": {"frames": 1, "fields": ["temperature"]}
+    });
+    merge(&mut s["physics"]["thermal"], thermal);
+    merge(&mut s, extra);
+    s
+}
+
+/// Recursively overwrites `base` with the keys of `patch`.
+fn merge(base: &mut Value, patch: Value) {
+    match (base, patch) {
+        (Value::Object(b), Value::Object(p)) => {
+            for (k, v) in p {
+                merge(b.entry(k).or_insert(Value::Null), v);
+            }
+        }
+        (b, p) => *b = p,
+    }
+}
+
+/// Melting with latent heat `ratio` times the sensible heat c·(T_surface − T_melt).
+fn latent(ratio: f64) -> Value {
+    let phase = json!({"conductivity": 1.0, "specific_heat": 1000.0, "density": 1000.0});
+    heat_bar(
+        "latent",
+        json!({"integrator": "implicit"}),
+        json!({"solver": {"dt": 0.1},
+               "physics": {"phase_change": {"materials": {"wax": {"melting": {
+                   "melt_temperature": 310.0, "latent_heat": ratio * 1000.0 * 290.0,
+                   "solid": phase, "liquid": phase}}}}}}),
+    )
+}
+
+/// A block whose lower half is solid (E = 1e10 Pa) and upper half liquid (bulk modulus
+/// 1e4 Pa): one `phase_mixture` material, two starting temperatures around the melting
+/// point, falling onto the floor.
+fn phase_contrast() -> Value {
+    let mixture = json!({"type": "phase_mixture", "density": 1000.0,
+        "solid": {"youngs_modulus": 1e10, "poisson_ratio": 0.3},
+        "liquid": {"viscosity": 1.0, "bulk_modulus": 1e4}});
+    let thermal =
+        |t: f64| json!({"conductivity": 1.0, "specific_heat": 1000.0, "initial_temperature": t});
+    let phase = json!({"conductivity": 1.0, "specific_heat": 1000.0, "density": 1000.0});
+    let melting = json!({"melting": {"melt_temperature": 300.0, "latent_heat": 1e5,
+                                     "solid": phase, "liquid": phase}});
+    json!({
+        "name": "phase-contrast", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1, 1], "cell_size": 0.025,
+                   "walls": [{"sides": ["x-", "x+", "y-", "y+"], "condition": "slip"}]},
+        "solver": {"end_time": 0.002, "gravity": [0, -9.81]},
+        "materials": {"cold": mixture.clone(), "hot": mixture},
+        "physics": {
+            "thermal": {"materials": {"cold": thermal(250.0), "hot": thermal(350.0)}},
+            "phase_change": {"materials": {"cold": melting.clone(), "hot": melting}}},
+        "bodies": [
+            {"material": "cold", "shape": {"box": {"min": [0.3, 0.0], "max": [0.7, 0.2]}}},
+            {"material": "hot", "shape": {"box": {"min": [0.3, 0.2], "max": [0.7, 0.4]}}}],
+        "output": {"frames": 1, "fields": ["x", "solid_fraction"]}
+    })
+}
+
 /// Every case of the suite.
 pub fn cases() -> Vec<Case> {
     vec![
@@ -224,6 +297,44 @@ pub fn cases() -> Vec<Case> {
             name: "contrast-1e6",
             what: "stiff block on a soft one, E ratio 1e6",
             scene: contrast(1e6),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "phase-contrast-1e6",
+            what: "solid (E 1e10 Pa) and liquid (bulk 1e4 Pa) halves of one phase-mixture block",
+            scene: phase_contrast(),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "heat-jump-300K",
+            what: "face of a 300 K bar stepped to 600 K, explicit conduction at its own step",
+            scene: heat_bar("jump", json!({"integrator": "explicit"}), json!({})),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "heat-jump-300K-implicit",
+            what: "the same jump, implicit conduction with 10 s steps (160x the explicit limit)",
+            scene: heat_bar(
+                "jump",
+                json!({"integrator": "implicit"}),
+                json!({"solver": {"dt": 10.0}}),
+            ),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "heat-explicit-10x",
+            what: "explicit conduction forced to 10x its stable step",
+            scene: heat_bar(
+                "jump",
+                json!({"integrator": "explicit"}),
+                json!({"solver": {"dt": 0.625, "max_cfl": 100.0}}),
+            ),
+            expected: Expected::Stopped,
+        },
+        Case {
+            name: "latent-100x",
+            what: "melting with latent heat 100x the sensible heat",
+            scene: latent(100.0),
             expected: Expected::Finished,
         },
         Case {

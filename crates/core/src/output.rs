@@ -157,8 +157,9 @@ pub struct Metrics {
     /// mechanical (kinetic + strain) energy seen; negative: dissipated (by the method,
     /// impacts, friction or damping).
     pub energy_drift: f64,
-    /// Work done on the body by moving obstacles (J; J/m in 2D); fixed walls and damping
-    /// do none (what they take away is dissipation).
+    /// Work done on the body by moving obstacles and by changing free strains (thermal
+    /// expansion, shrinkage) (J; J/m in 2D); fixed walls and damping do none (what they
+    /// take away is dissipation).
     pub boundary_work: f64,
     /// Largest |energy drift| over the run.
     pub max_energy_drift: f64,

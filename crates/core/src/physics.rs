@@ -27,6 +27,11 @@ pub const FREE_STRAIN: &str = "free_strain";
 /// last step, J per m³ of reference volume; present only when a physics consumes it.
 pub const PLASTIC_WORK: &str = "plastic_work";
 
+/// Name of the shared field where physics operators deposit heat released in a particle
+/// during the current step (heat of reaction), J per m³ of reference volume; a thermal
+/// physics conducts it from the particle's neighbourhood in the same step.
+pub const HEAT_RELEASE: &str = "heat_release";
+
 /// A scalar per-particle field that a physics operator creates for every particle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SharedFieldSpec {
@@ -89,7 +94,9 @@ impl ParticleFields {
 
     /// Moves a field's values out (empty when missing); give them back with [`Self::restore`].
     pub(crate) fn take(&mut self, name: &str) -> Vec<f64> {
-        self.get_mut_vec(name).map(std::mem::take).unwrap_or_default()
+        self.get_mut_vec(name)
+            .map(std::mem::take)
+            .unwrap_or_default()
     }
 
     /// Puts back what [`Self::take`] moved out.

@@ -13,7 +13,7 @@
 use crate::JohnsonCookParameters;
 use crate::damage::FailureMode;
 use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, SharedRead, FieldInit, FieldSpec, StressBatch, lame_parameters,
+    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, lame_parameters,
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;

@@ -94,7 +94,10 @@ impl CureParameters {
         let kp = format!("{path}.kinetics");
         let mut nonneg = |p: String, v: f64| {
             if !(v.is_finite() && v >= 0.0) {
-                issues.push(Issue::new(p, format!("must be a finite number >= 0 (got {v})")));
+                issues.push(Issue::new(
+                    p,
+                    format!("must be a finite number >= 0 (got {v})"),
+                ));
             }
         };
         nonneg(format!("{kp}.a1"), k.a1);
@@ -106,7 +109,10 @@ impl CureParameters {
         nonneg(format!("{path}.heat_of_reaction"), self.heat_of_reaction);
         nonneg(format!("{path}.shrinkage"), self.shrinkage);
         if k.a1 == 0.0 && k.a2 == 0.0 {
-            issues.push(Issue::new(kp, "a1 and a2 are both 0: the resin never cures"));
+            issues.push(Issue::new(
+                kp,
+                "a1 and a2 are both 0: the resin never cures",
+            ));
         } else if k.a1 == 0.0 && self.initial_cure == 0.0 {
             issues.push(Issue::new(
                 format!("{path}.kinetics.a1"),
@@ -157,7 +163,9 @@ impl CureParameters {
             let k2 = rate(a + 0.5 * h * k1, t + 0.5 * h * k1 * heating);
             let k3 = rate(a + 0.5 * h * k2, t + 0.5 * h * k2 * heating);
             let k4 = rate(a + h * k3, t + h * k3 * heating);
-            let da = (h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)).min(1.0 - a).max(0.0);
+            let da = (h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4))
+                .min(1.0 - a)
+                .max(0.0);
             a += da;
             t += da * heating;
         }

@@ -70,7 +70,10 @@ fn build(
     Ok(Arc::new(PhaseChange::new(params)))
 }
 
-fn build_mixture(params: PhaseMixtureParameters, path: &str) -> Result<Arc<dyn Material>, Vec<Issue>> {
+fn build_mixture(
+    params: PhaseMixtureParameters,
+    path: &str,
+) -> Result<Arc<dyn Material>, Vec<Issue>> {
     let issues = params.check(path);
     if !issues.is_empty() {
         return Err(issues);

@@ -44,7 +44,10 @@ impl Melting {
         let mut issues = Vec::new();
         let mut positive = |p: String, v: f64| {
             if !(v.is_finite() && v > 0.0) {
-                issues.push(Issue::new(p, format!("must be a finite number > 0 (got {v})")));
+                issues.push(Issue::new(
+                    p,
+                    format!("must be a finite number > 0 (got {v})"),
+                ));
             }
         };
         positive(format!("{path}.melt_temperature"), self.melt_temperature);
@@ -92,11 +95,17 @@ impl Melting {
         if temperature > tm && fraction > 0.0 {
             let excess = specific_heat * (temperature - tm);
             let melted = (excess / l).min(fraction);
-            (tm + (excess - melted * l) / specific_heat, fraction - melted)
+            (
+                tm + (excess - melted * l) / specific_heat,
+                fraction - melted,
+            )
         } else if temperature < tm && fraction < 1.0 {
             let deficit = specific_heat * (tm - temperature);
             let frozen = (deficit / l).min(1.0 - fraction);
-            (tm - (deficit - frozen * l) / specific_heat, fraction + frozen)
+            (
+                tm - (deficit - frozen * l) / specific_heat,
+                fraction + frozen,
+            )
         } else {
             (temperature, fraction)
         }

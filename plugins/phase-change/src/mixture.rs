@@ -128,7 +128,10 @@ impl ConstitutiveLaw for PhaseMixture {
         let [previous, solid, ..] = batch.state.fields;
         let fraction = batch.shared[0];
         let (lambda, mu) = (self.lambda, self.mu);
-        let (eta, bulk) = (self.params.liquid.viscosity, self.params.liquid.bulk_modulus);
+        let (eta, bulk) = (
+            self.params.liquid.viscosity,
+            self.params.liquid.bulk_modulus,
+        );
         let load = |slot: &[f64]| {
             let mut m = Matrix::<D>::zeros();
             for r in 0..D {

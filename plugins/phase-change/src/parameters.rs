@@ -48,10 +48,7 @@ impl PhaseChangeParameters {
             match (&m.melting, &m.cure) {
                 (Some(melt), None) => issues.extend(melt.check(&format!("{p}.melting"))),
                 (None, Some(cure)) => issues.extend(cure.check(&format!("{p}.cure"))),
-                _ => issues.push(Issue::new(
-                    &p,
-                    "give exactly one of `melting` and `cure`",
-                )),
+                _ => issues.push(Issue::new(&p, "give exactly one of `melting` and `cure`")),
             }
         }
         issues

@@ -1,7 +1,9 @@
 //! The phase-change operator: property mixing, latent heat, cure kinetics, free strains.
 
 use crate::parameters::PhaseChangeParameters;
-use mpm_core::physics::{FREE_STRAIN, PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
+use mpm_core::physics::{
+    FREE_STRAIN, HEAT_RELEASE, PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage,
+};
 
 /// Melting, solidification and cure on the particles (see the crate documentation).
 pub struct PhaseChange {
@@ -50,8 +52,44 @@ impl PhaseChange {
         }
     }
 
+    /// Cure kinetics over the coming step, at the particles' temperatures: the degree of
+    /// cure advances (with the temperature rise of its own heat, which the kinetics see),
+    /// and the heat of reaction goes to the `heat_release` field, which the conduction of
+    /// this step spreads through the grid like any heat source.
+    fn cure<const D: usize>(&self, ctx: &mut PhysicsContext<'_, D>) {
+        let dt = ctx.dt;
+        if dt <= 0.0 || !self.cure {
+            return;
+        }
+        let [Some(t), Some(c), Some(cure), Some(heat)] =
+            ctx.fields
+                .many_mut(["temperature", "specific_heat", "cure", HEAT_RELEASE])
+        else {
+            return;
+        };
+        let pv = &ctx.particles;
+        heat.fill(0.0);
+        for g in pv.groups {
+            let Some(params) = self
+                .params
+                .materials
+                .get(&g.name)
+                .and_then(|m| m.cure.as_ref())
+            else {
+                continue;
+            };
+            for p in g.range.clone() {
+                let (a, _) = params.advance(cure[p], t[p], c[p], dt);
+                let rho0 = pv.mass[p] / pv.volume0[p];
+                heat[p] = rho0 * params.heat_of_reaction * (a - cure[p]);
+                cure[p] = a;
+            }
+        }
+    }
+
     /// Mixes conductivity and specific heat of melting materials by solid fraction.
-    fn mix<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
+    fn mix<const D: usize>(&self, mut ctx: PhysicsContext<'_, D>) {
+        self.cure(&mut ctx);
         let [Some(f), Some(k), Some(c)] =
             ctx.fields
                 .many_mut(["solid_fraction", "conductivity", "specific_heat"])
@@ -59,7 +97,11 @@ impl PhaseChange {
             return;
         };
         for g in ctx.particles.groups {
-            let Some(melt) = self.params.materials.get(&g.name).and_then(|m| m.melting.as_ref())
+            let Some(melt) = self
+                .params
+                .materials
+                .get(&g.name)
+                .and_then(|m| m.melting.as_ref())
             else {
                 continue;
             };
@@ -73,7 +115,6 @@ impl PhaseChange {
 
     /// Latent heat and cure after conduction.
     fn react<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
-        let dt = ctx.dt;
         let [Some(t), Some(f), Some(c), cure, tg] = ctx.fields.many_mut([
             "temperature",
             "solid_fraction",
@@ -83,7 +124,7 @@ impl PhaseChange {
         ]) else {
             return;
         };
-        let (mut cure, mut tg) = (cure, tg);
+        let (cure, mut tg) = (cure, tg);
         for g in ctx.particles.groups {
             let Some(m) = self.params.materials.get(&g.name) else {
                 continue;
@@ -94,12 +135,7 @@ impl PhaseChange {
                     t[p] = tt;
                     f[p] = ff;
                 }
-                if let (Some(params), Some(cure)) = (&m.cure, cure.as_deref_mut()) {
-                    if dt > 0.0 {
-                        let (a, tt) = params.advance(cure[p], t[p], c[p], dt);
-                        cure[p] = a;
-                        t[p] = tt;
-                    }
+                if let (Some(params), Some(cure)) = (&m.cure, cure.as_deref()) {
                     if let (Some(tg), Some(gt)) = (tg.as_deref_mut(), &params.glass_transition) {
                         tg[p] = gt.at(cure[p]);
                     }
@@ -113,7 +149,8 @@ impl PhaseChange {
 
     /// Adds density-change and shrinkage strains to the free strain (thermal set it).
     fn strain<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
-        let [Some(f), Some(fs), cure] = ctx.fields.many_mut(["solid_fraction", FREE_STRAIN, "cure"])
+        let [Some(f), Some(fs), cure] =
+            ctx.fields.many_mut(["solid_fraction", FREE_STRAIN, "cure"])
         else {
             return;
         };
@@ -151,6 +188,10 @@ impl PhysicsLaw for PhaseChange {
             });
             f.push(SharedFieldSpec {
                 name: "glass_transition",
+                initial: 0.0,
+            });
+            f.push(SharedFieldSpec {
+                name: HEAT_RELEASE,
                 initial: 0.0,
             });
         }

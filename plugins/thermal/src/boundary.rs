@@ -40,7 +40,10 @@ impl ThermalBoundary {
     pub fn check(&self, path: &str, dim: usize) -> Vec<Issue> {
         let mut issues = Vec::new();
         if self.sides.is_empty() {
-            issues.push(Issue::new(format!("{path}.sides"), "name at least one face"));
+            issues.push(Issue::new(
+                format!("{path}.sides"),
+                "name at least one face",
+            ));
         }
         for (i, side) in self.sides.iter().enumerate() {
             if side.axis_and_upper().0 >= dim {
@@ -67,7 +70,11 @@ impl ThermalBoundary {
         let finite = |v: f64| v.is_finite();
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if let Some(t) = &self.temperature {
-            issues.extend(t.check(&format!("{path}.temperature"), "a finite number > 0 K", positive));
+            issues.extend(t.check(
+                &format!("{path}.temperature"),
+                "a finite number > 0 K",
+                positive,
+            ));
         }
         if let Some(q) = &self.heat_flux {
             issues.extend(q.check(&format!("{path}.heat_flux"), "finite", finite));

@@ -6,8 +6,8 @@ use crate::conjugate_gradient::{Work, solve};
 use crate::parameters::{Integrator, ThermalParameters};
 use mpm_core::math::{Matrix, Vector, determinant};
 use mpm_core::physics::{
-    FREE_STRAIN, Interpolation, PLASTIC_WORK, PhysicsContext, PhysicsFault, PhysicsLaw,
-    SharedFieldSpec, Stage,
+    FREE_STRAIN, HEAT_RELEASE, Interpolation, PLASTIC_WORK, PhysicsContext, PhysicsFault,
+    PhysicsLaw, SharedFieldSpec, Stage,
 };
 use mpm_core::scene::Scene;
 
@@ -105,22 +105,52 @@ impl Thermal {
         if dt <= 0.0 {
             return;
         }
-        let plastic_work: Vec<f64> = if self.plastic_heating {
-            fields.get(PLASTIC_WORK).map(<[f64]>::to_vec).unwrap_or_default()
-        } else {
-            Vec::new()
-        };
-        let [Some(temperature), Some(conductivity), Some(specific_heat)] =
-            fields.many_mut(["temperature", "conductivity", "specific_heat"])
+        let [
+            Some(temperature),
+            Some(conductivity),
+            Some(specific_heat),
+            plastic_work,
+            heat_release,
+        ] = fields.many_mut([
+            "temperature",
+            "conductivity",
+            "specific_heat",
+            PLASTIC_WORK,
+            HEAT_RELEASE,
+        ])
         else {
             return;
         };
-        let [cap, t_old, t_new, source, convection, fixed, kdiag, r, z, p_dir, ap] = scratch
+        let plastic_work: &[f64] = if self.plastic_heating {
+            plastic_work.map_or(&[][..], |w| &*w)
+        } else {
+            &[]
+        };
+        let heat_release: &[f64] = heat_release.map_or(&[][..], |h| &*h);
+        let [
+            cap,
+            t_old,
+            t_new,
+            source,
+            convection,
+            fixed,
+            kdiag,
+            r,
+            z,
+            p_dir,
+            ap,
+        ] = scratch
         else {
             return;
         };
         debug_assert_eq!(CAPACITY, 0);
-        for a in [&mut *cap, &mut *t_old, &mut *source, &mut *convection, &mut *kdiag] {
+        for a in [
+            &mut *cap,
+            &mut *t_old,
+            &mut *source,
+            &mut *convection,
+            &mut *kdiag,
+        ] {
             a.fill(0.0);
         }
         fixed.fill(f64::NAN);
@@ -138,6 +168,9 @@ impl Thermal {
                 let mut q = m.heat_source * v;
                 if beta > 0.0 && !plastic_work.is_empty() {
                     q += beta * plastic_work[p] * pv.volume0[p] / dt;
+                }
+                if !heat_release.is_empty() {
+                    q += heat_release[p] * pv.volume0[p] / dt;
                 }
                 let kv = conductivity[p] * v;
                 for e in it.entries(p) {
@@ -228,12 +261,7 @@ impl Thermal {
                     kdiag,
                     source,
                     t_new,
-                    Work {
-                        r,
-                        z,
-                        p: p_dir,
-                        ap,
-                    },
+                    Work { r, z, p: p_dir, ap },
                     self.params.tolerance,
                     self.params.max_iterations,
                 );
@@ -253,13 +281,16 @@ impl Thermal {
         }
 
         // G2P: the nodal temperature change (not the value: no smoothing of the field).
-        for p in 0..temperature.len() {
+        // Known limit: beside a held face the change carries the jump of the condition,
+        // and the first particle layer overshoots it early on (415 K against a 400 K face
+        // at 0.02 s in the slab); clamping or interpolating there cost accuracy.
+        for (p, t) in temperature.iter_mut().enumerate() {
             let mut change = 0.0;
             for e in it.entries(p) {
                 let i = it.node[e] as usize;
                 change += it.weight[e] * (t_new[i] - t_old[i]);
             }
-            temperature[p] += change;
+            *t += change;
         }
         if let Some(p) = temperature
             .iter()

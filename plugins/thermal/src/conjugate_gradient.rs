@@ -96,13 +96,19 @@ mod tests {
         inv[0] = 0.0;
         let mut x = vec![0.0; n];
         x[0] = 1.0;
-        let (mut r, mut z, mut p, mut ap) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let (mut r, mut z, mut p, mut ap) =
+            (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         let s = solve(
             op,
             &inv,
             &b,
             &mut x,
-            Work { r: &mut r, z: &mut z, p: &mut p, ap: &mut ap },
+            Work {
+                r: &mut r,
+                z: &mut z,
+                p: &mut p,
+                ap: &mut ap,
+            },
             1e-12,
             100,
         );

@@ -110,13 +110,19 @@ impl ThermalParameters {
             if !positive(m.initial_temperature) {
                 issues.push(Issue::new(
                     format!("{p}.initial_temperature"),
-                    format!("must be a finite number > 0 K (got {})", m.initial_temperature),
+                    format!(
+                        "must be a finite number > 0 K (got {})",
+                        m.initial_temperature
+                    ),
                 ));
             }
             if !(m.expansion.is_finite() && m.expansion.abs() < 1e-2) {
                 issues.push(Issue::new(
                     format!("{p}.expansion"),
-                    format!("must be a finite coefficient per kelvin below 1e-2 in size (got {})", m.expansion),
+                    format!(
+                        "must be a finite coefficient per kelvin below 1e-2 in size (got {})",
+                        m.expansion
+                    ),
                 ));
             }
             if let Some(t) = m.reference_temperature

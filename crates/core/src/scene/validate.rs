@@ -571,7 +571,7 @@ impl Validator {
                 }
                 self.positive("reference.length", *length);
                 self.positive("reference.latent_heat", *latent_heat);
-                if !(surface_temperature > melt_temperature) {
+                if surface_temperature.is_nan() || surface_temperature <= melt_temperature {
                     self.err(
                         "reference.surface_temperature",
                         "must be above the melting temperature (the body melts)",
@@ -584,8 +584,14 @@ impl Validator {
                     );
                 }
                 for (name, phase) in [("liquid", liquid), ("solid", solid)] {
-                    self.positive(&format!("reference.{name}.conductivity"), phase.conductivity);
-                    self.positive(&format!("reference.{name}.specific_heat"), phase.specific_heat);
+                    self.positive(
+                        &format!("reference.{name}.conductivity"),
+                        phase.conductivity,
+                    );
+                    self.positive(
+                        &format!("reference.{name}.specific_heat"),
+                        phase.specific_heat,
+                    );
                     self.positive(&format!("reference.{name}.density"), phase.density);
                 }
                 if (liquid.density - solid.density).abs() > 1e-9 * liquid.density {
@@ -705,7 +711,7 @@ impl Validator {
                 }
             }
         }
-        if !s.solver.mechanics.is_dynamic() && built.is_empty() {
+        if !s.solver.mechanics.is_dynamic() && s.physics.is_empty() {
             self.err(
                 "solver.mechanics",
                 "only a scene with physics (a `physics` section) may turn dynamics off",
@@ -720,6 +726,10 @@ impl Validator {
         materials: &BTreeMap<String, Arc<dyn Material>>,
         physics: &[(String, Arc<dyn Physics>)],
     ) {
+        if physics.len() < s.physics.len() {
+            // A physics section failed to build: its fields are unknown, not wrong.
+            return;
+        }
         let mut known: BTreeSet<&str> = CORE_FIELDS.iter().copied().collect();
         for (_, p) in physics {
             for f in p.fields() {

@@ -27,19 +27,19 @@ use crate::output::{
 };
 use crate::particles::{MaterialGroup, Particles};
 use crate::physics::{
-    GroupView, Interpolation, ParticleFields, ParticleView, Physics, PhysicsContext,
-    PhysicsReport, Stage,
+    GroupView, Interpolation, ParticleFields, ParticleView, Physics, PhysicsContext, PhysicsReport,
+    Stage,
 };
-use std::sync::Arc;
 use crate::reference::ReferenceTracker;
 use crate::scene::{KernelName, Mechanics, Scheme, Transfer, ValidatedScene};
 use binning::{Reorder, SlabBins};
 use grid_to_particle::{G2pParams, grid_to_particle, measure};
 use grid_update::{GridParams, update_grid};
+use interpolation::build_interpolation;
 use particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
 use stats::{KinematicStats, ParticleFault};
+use std::sync::Arc;
 use std::time::Instant;
-use interpolation::build_interpolation;
 use stress_update::{StressScratch, StressStats, update_stress};
 use volume_averaging::VolumeAverage;
 
@@ -549,7 +549,11 @@ where
                 scratch: &mut slot.scratch,
                 report: &mut self.report,
             };
-            <dyn Material as DimensionDispatch<D>>::physics_stage(slot.physics.as_ref(), stage, ctx);
+            <dyn Material as DimensionDispatch<D>>::physics_stage(
+                slot.physics.as_ref(),
+                stage,
+                ctx,
+            );
         }
     }
 

@@ -4,9 +4,7 @@
 
 use super::parallel::SharedSlice;
 use super::stats::ParticleFault;
-use crate::material::{
-    BatchStats, MAX_SHARED_READS, MAX_STATE_FIELDS, StateSlices, StressBatch,
-};
+use crate::material::{BatchStats, MAX_SHARED_READS, MAX_STATE_FIELDS, StateSlices, StressBatch};
 use crate::math::Matrix;
 use crate::particles::Particles;
 use crate::physics::{FREE_STRAIN, PLASTIC_WORK};
@@ -133,7 +131,9 @@ where
                     volume0: &volume0[global.clone()],
                     stress,
                     state: StateSlices { fields },
-                    shared: std::array::from_fn(|k| reads[k].map_or(&[][..], |f| &f[global.clone()])),
+                    shared: std::array::from_fn(|k| {
+                        reads[k].map_or(&[][..], |f| &f[global.clone()])
+                    }),
                     plastic_work,
                 };
                 let batch_stats = material.as_ref().update(batch);
