@@ -84,9 +84,9 @@ impl ParticleFields {
     pub fn many_mut<const N: usize>(&mut self, names: [&str; N]) -> [Option<&mut [f64]>; N] {
         let mut out: [Option<&mut [f64]>; N] = std::array::from_fn(|_| None);
         for (name, values) in self.names.iter().zip(self.values.iter_mut()) {
-            let hits: Vec<usize> = (0..N).filter(|&k| names[k] == *name).collect();
-            if hits.len() == 1 {
-                out[hits[0]] = Some(values.as_mut_slice());
+            let mut hits = (0..N).filter(|&k| names[k] == *name);
+            if let (Some(k), None) = (hits.next(), hits.next()) {
+                out[k] = Some(values.as_mut_slice());
             }
         }
         out
@@ -364,13 +364,7 @@ where
     }
 
     fn schema(&self) -> serde_json::Value {
-        let mut schema = schemars::SchemaGenerator::default()
-            .into_root_schema_for::<P>()
-            .to_value();
-        if let Some(obj) = schema.as_object_mut() {
-            obj.remove("$schema");
-        }
-        schema
+        crate::plugin::section_schema::<P>()
     }
 
     fn build(

@@ -204,11 +204,8 @@ where
     }
 
     fn schema(&self) -> serde_json::Value {
-        let mut schema = schemars::SchemaGenerator::default()
-            .into_root_schema_for::<P>()
-            .to_value();
+        let mut schema = section_schema::<P>();
         if let Some(obj) = schema.as_object_mut() {
-            obj.remove("$schema");
             if let Some(props) = obj.get_mut("properties").and_then(|p| p.as_object_mut()) {
                 props.insert(
                     "type".into(),
@@ -236,6 +233,18 @@ where
         let typed: P = crate::scene::deserialize_at(&params, path).map_err(|e| vec![e])?;
         (self.build)(typed, path)
     }
+}
+
+/// The JSON Schema of a scene section's parameter struct, without the `$schema` key (it
+/// is embedded in the scene schema).
+pub fn section_schema<P: schemars::JsonSchema>() -> serde_json::Value {
+    let mut schema = schemars::SchemaGenerator::default()
+        .into_root_schema_for::<P>()
+        .to_value();
+    if let Some(obj) = schema.as_object_mut() {
+        obj.remove("$schema");
+    }
+    schema
 }
 
 /// Checks the usual elastic constants and returns every problem with its JSON path.

@@ -201,53 +201,41 @@ impl ReferenceTracker {
                 initial_temperature,
                 surface_temperature,
                 diffusivity,
-            } => {
-                let Some(temperature) = particles.shared.get("temperature") else {
-                    return;
-                };
-                if time <= 0.0 {
-                    return;
-                }
-                let step2 = (initial_temperature - surface_temperature).powi(2);
-                for (x, t) in particles.position.iter().zip(temperature) {
-                    let exact = slab_temperature(
+            } => self.observe_temperature(
+                particles,
+                time,
+                initial_temperature - surface_temperature,
+                |x| {
+                    slab_temperature(
                         x[axis] - min,
                         time,
                         max - min,
                         diffusivity,
                         initial_temperature,
                         surface_temperature,
-                    );
-                    self.numerator += (t - exact).powi(2);
-                    self.denominator += step2;
-                }
-            }
+                    )
+                },
+            ),
             Reference::SemiInfiniteTemperature {
                 axis,
                 surface,
                 initial_temperature,
                 surface_temperature,
                 diffusivity,
-            } => {
-                let Some(temperature) = particles.shared.get("temperature") else {
-                    return;
-                };
-                if time <= 0.0 {
-                    return;
-                }
-                let step2 = (initial_temperature - surface_temperature).powi(2);
-                for (x, t) in particles.position.iter().zip(temperature) {
-                    let exact = semi_infinite_temperature(
+            } => self.observe_temperature(
+                particles,
+                time,
+                initial_temperature - surface_temperature,
+                |x| {
+                    semi_infinite_temperature(
                         (x[axis] - surface).abs(),
                         time,
                         diffusivity,
                         initial_temperature,
                         surface_temperature,
-                    );
-                    self.numerator += (t - exact).powi(2);
-                    self.denominator += step2;
-                }
-            }
+                    )
+                },
+            ),
             Reference::Stefan {
                 length, ref liquid, ..
             } => {
@@ -302,6 +290,27 @@ impl ReferenceTracker {
                 }
                 self.denominator = 1.0;
             }
+        }
+    }
+
+    /// Adds one frame's squared temperature errors against `exact(position)`, each
+    /// normalised by the temperature step (nothing at t = 0 or without temperatures).
+    fn observe_temperature<const D: usize>(
+        &mut self,
+        particles: &Particles<D>,
+        time: f64,
+        step: f64,
+        exact: impl Fn(&Vector<D>) -> f64,
+    ) {
+        let Some(temperature) = particles.shared.get("temperature") else {
+            return;
+        };
+        if time <= 0.0 {
+            return;
+        }
+        for (x, t) in particles.position.iter().zip(temperature) {
+            self.numerator += (t - exact(x)).powi(2);
+            self.denominator += step * step;
         }
     }
 

@@ -11,8 +11,8 @@ use mpm_core::physics::{
 };
 use mpm_core::scene::Scene;
 
-/// Grid scratch arrays, by index.
-const CAPACITY: usize = 0;
+/// Grid scratch arrays: capacity, old and new nodal temperature, sources, convection,
+/// held values, conductance diagonal, and four conjugate-gradient vectors.
 const ARRAYS: usize = 11;
 /// Temperatures at or above this stop the run: the conduction has diverged.
 const MAX_TEMPERATURE: f64 = 1e5;
@@ -143,7 +143,6 @@ impl Thermal {
         else {
             return;
         };
-        debug_assert_eq!(CAPACITY, 0);
         for a in [
             &mut *cap,
             &mut *t_old,

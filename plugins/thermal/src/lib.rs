@@ -55,6 +55,3 @@ fn build(
     }
     Ok(Arc::new(Thermal::new(params, scene)))
 }
-
-#[cfg(test)]
-mod tests;

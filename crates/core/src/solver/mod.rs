@@ -520,8 +520,14 @@ where
         )
     }
 
-    /// Runs one stage of every physics operator, in order.
-    fn physics_stage(&mut self, stage: Stage, dt: f64) {
+    /// Calls `visit` with every physics operator, in order, and its context for a step of
+    /// `dt` ending at `time`.
+    fn each_physics(
+        &mut self,
+        dt: f64,
+        time: f64,
+        mut visit: impl FnMut(&dyn Physics, PhysicsContext<'_, D>),
+    ) {
         let Particles {
             position,
             mass,
@@ -534,7 +540,7 @@ where
         for slot in &mut self.physics {
             let ctx = PhysicsContext {
                 dt,
-                time: self.time + dt,
+                time,
                 grid: &self.grid,
                 interpolation: &self.interpolation,
                 particles: ParticleView {
@@ -549,49 +555,25 @@ where
                 scratch: &mut slot.scratch,
                 report: &mut self.report,
             };
-            <dyn Material as DimensionDispatch<D>>::physics_stage(
-                slot.physics.as_ref(),
-                stage,
-                ctx,
-            );
+            visit(slot.physics.as_ref(), ctx);
         }
+    }
+
+    /// Runs one stage of every physics operator, in order.
+    fn physics_stage(&mut self, stage: Stage, dt: f64) {
+        self.each_physics(dt, self.time + dt, |physics, ctx| {
+            <dyn Material as DimensionDispatch<D>>::physics_stage(physics, stage, ctx)
+        });
     }
 
     /// The smallest stable step of the physics operators (infinite for implicit ones).
     fn compute_physics_dt(&mut self) -> f64 {
-        let Particles {
-            position,
-            mass,
-            volume0,
-            deformation_gradient,
-            stress,
-            shared,
-            ..
-        } = &mut self.particles;
         let mut dt = f64::INFINITY;
-        for slot in &mut self.physics {
-            let ctx = PhysicsContext {
-                dt: 0.0,
-                time: self.time,
-                grid: &self.grid,
-                interpolation: &self.interpolation,
-                particles: ParticleView {
-                    position,
-                    mass,
-                    volume0,
-                    deformation_gradient,
-                    stress,
-                    groups: &self.group_views,
-                },
-                fields: shared,
-                scratch: &mut slot.scratch,
-                report: &mut self.report,
-            };
+        self.each_physics(0.0, self.time, |physics, ctx| {
             dt = dt.min(<dyn Material as DimensionDispatch<D>>::physics_stable_dt(
-                slot.physics.as_ref(),
-                ctx,
+                physics, ctx,
             ));
-        }
+        });
         dt
     }
 
