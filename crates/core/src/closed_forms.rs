@@ -1,4 +1,4 @@
-//! Closed-form solutions the heat, phase-change and cure references compare with.
+//! Closed-form solutions the heat, phase-change, cure and flow references compare with.
 
 use std::f64::consts::PI;
 
@@ -98,6 +98,96 @@ pub fn kamal_sourour_isothermal(k1: f64, k2: f64, t: f64) -> f64 {
     k1 * (e - 1.0) / (k2 + k1 * e)
 }
 
+/// Liquid front of capillary filling between parallel plates (Washburn/Lucas law): the
+/// distance `√(h σ cosθ t / (3μ))` from the entrance at time `t`, held at `length` once the
+/// gap is full; `contact_angle` in degrees.
+pub fn capillary_front(
+    t: f64,
+    length: f64,
+    gap: f64,
+    surface_tension: f64,
+    contact_angle: f64,
+    viscosity: f64,
+) -> f64 {
+    if t <= 0.0 {
+        return 0.0;
+    }
+    let cos = contact_angle.to_radians().cos();
+    (gap * surface_tension * cos * t / (3.0 * viscosity))
+        .sqrt()
+        .min(length)
+}
+
+/// Time capillary filling between parallel plates takes to reach `length` (see
+/// [`capillary_front`]): `3 μ L² / (h σ cosθ)`; `contact_angle` in degrees.
+pub fn capillary_fill_time(
+    length: f64,
+    gap: f64,
+    surface_tension: f64,
+    contact_angle: f64,
+    viscosity: f64,
+) -> f64 {
+    3.0 * viscosity * length * length / (gap * surface_tension * contact_angle.to_radians().cos())
+}
+
+/// Most odd terms summed by [`poiseuille_startup_profile`] (reached only at times so early
+/// that the remaining terms are below 1e-9 of the steady centre-line velocity).
+const POISEUILLE_TERMS: usize = 10_000;
+
+/// Velocity profile at time `t` of plane Poiseuille flow starting from rest under a constant
+/// pressure gradient `G = −dp/dx > 0` between no-slip plates at y = 0 and y = `gap`:
+/// `u = G y (h − y)/(2μ) − (4Gh²/(μπ³)) Σ_{n odd} sin(nπy/h)/n³ · exp(−n²π²μt/(ρh²))`.
+///
+/// The series coefficients are computed once per time, so evaluate many positions with one
+/// profile; odd terms are summed until they fall below 1e-12 of the steady centre-line
+/// velocity `Gh²/(8μ)`. Positions outside the gap are clamped onto the plates (u = 0).
+pub fn poiseuille_startup_profile(
+    t: f64,
+    gap: f64,
+    pressure_gradient: f64,
+    viscosity: f64,
+    density: f64,
+) -> impl Fn(f64) -> f64 {
+    let amplitude = 4.0 * pressure_gradient * gap * gap / (viscosity * PI.powi(3));
+    let steady_centre = pressure_gradient * gap * gap / (8.0 * viscosity);
+    let rate = PI * PI * viscosity / (density * gap * gap);
+    let mut coefficients = Vec::new();
+    if t > 0.0 {
+        for k in 0..POISEUILLE_TERMS {
+            let n = (2 * k + 1) as f64;
+            let c = amplitude / (n * n * n) * (-n * n * rate * t).exp();
+            if c.abs() < 1e-12 * steady_centre {
+                break;
+            }
+            coefficients.push(c);
+        }
+    }
+    move |y: f64| {
+        if t <= 0.0 {
+            return 0.0;
+        }
+        let y = y.clamp(0.0, gap);
+        let mut series = 0.0;
+        for (k, c) in coefficients.iter().enumerate() {
+            series += c * ((2 * k + 1) as f64 * PI * y / gap).sin();
+        }
+        pressure_gradient / (2.0 * viscosity) * y * (gap - y) - series
+    }
+}
+
+/// Velocity at height `y` above the lower plate and time `t` of plane Poiseuille start-up
+/// (see [`poiseuille_startup_profile`], which is cheaper for many positions).
+pub fn poiseuille_startup_velocity(
+    y: f64,
+    t: f64,
+    gap: f64,
+    pressure_gradient: f64,
+    viscosity: f64,
+    density: f64,
+) -> f64 {
+    poiseuille_startup_profile(t, gap, pressure_gradient, viscosity, density)(y)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -153,5 +243,61 @@ mod tests {
             let _ = t;
         }
         assert!((a - kamal_sourour_isothermal(k1, k2, 200.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn capillary_front_reaches_the_end_at_the_fill_time() {
+        let (length, gap, sigma, theta, mu) = (5e-3, 50e-6, 0.03, 30.0, 2.0);
+        let t_fill = capillary_fill_time(length, gap, sigma, theta, mu);
+        // 3 μ L² / (h σ cos 30°) = 3·2·25e-6 / (50e-6·0.03·0.8660254) = 115.47 s.
+        assert!((t_fill - 115.470_053_837_925_15).abs() < 1e-9, "{t_fill}");
+        let front = |t| capillary_front(t, length, gap, sigma, theta, mu);
+        assert!((front(t_fill) - length).abs() < 1e-12 * length);
+        // x² grows linearly in time: a quarter of the fill time reaches half the length.
+        assert!((front(0.25 * t_fill) - 0.5 * length).abs() < 1e-12 * length);
+        assert_eq!(front(2.0 * t_fill), length);
+        assert_eq!(front(0.0), 0.0);
+        // A wetting angle closer to 90° pulls more weakly.
+        assert!(capillary_fill_time(length, gap, sigma, 60.0, mu) > t_fill);
+    }
+
+    #[test]
+    fn poiseuille_startup_tends_to_the_parabola() {
+        let (h, g, mu, rho) = (1e-3, 1e4, 0.5, 1000.0);
+        // Slowest mode decays as exp(−π² μ t/(ρ h²)); after 40 such times it is gone.
+        let t = 40.0 * rho * h * h / (PI * PI * mu);
+        let profile = poiseuille_startup_profile(t, h, g, mu, rho);
+        let centre = g * h * h / (8.0 * mu);
+        for y in [0.0, 0.1e-3, 0.25e-3, 0.5e-3, 0.9e-3, 1e-3] {
+            let steady = g / (2.0 * mu) * y * (h - y);
+            assert!((profile(y) - steady).abs() < 1e-12 * centre, "{y}");
+        }
+        assert!((profile(0.5e-3) - centre).abs() < 1e-12 * centre);
+        assert_eq!(poiseuille_startup_velocity(0.5e-3, 0.0, h, g, mu, rho), 0.0);
+        // Earlier, only the slowest mode is left: the centre line lags the parabola by
+        // (32/π³) e^{−π² μ t/(ρ h²)} of the steady centre-line velocity (third mode: e^{−45}).
+        let t = 5.0 * rho * h * h / (PI * PI * mu);
+        let lag = centre - poiseuille_startup_velocity(0.5e-3, t, h, g, mu, rho);
+        let expect = 32.0 / PI.powi(3) * (-5.0f64).exp() * centre;
+        assert!((lag - expect).abs() < 1e-12 * centre, "{lag} {expect}");
+    }
+
+    #[test]
+    fn poiseuille_startup_accelerates_freely_before_viscosity_reaches_the_centre() {
+        let (h, g, mu, rho) = (1e-3, 1e4, 0.5, 1000.0);
+        // Diffusion length √(μt/ρ) = h/100: the centre line feels no wall yet, u = G t / ρ.
+        let t = 1e-4 * rho * h * h / mu;
+        let u = poiseuille_startup_velocity(0.5 * h, t, h, g, mu, rho);
+        assert!((u - g * t / rho).abs() < 1e-6 * g * t / rho, "{u}");
+        // Near the wall the fluid lags behind.
+        let near_wall = poiseuille_startup_velocity(0.01 * h, t, h, g, mu, rho);
+        assert!(
+            near_wall > 0.0 && near_wall < 0.8 * g * t / rho,
+            "{near_wall}"
+        );
+        // The profile is symmetric about the centre line and zero on the plates.
+        let profile = poiseuille_startup_profile(10.0 * t, h, g, mu, rho);
+        assert!((profile(0.3 * h) - profile(0.7 * h)).abs() < 1e-12 * g * t / rho);
+        assert!(profile(0.0).abs() < 1e-9 * g * t / rho && profile(h).abs() < 1e-9 * g * t / rho);
     }
 }

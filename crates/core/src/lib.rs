@@ -6,6 +6,7 @@
 
 pub mod boundary;
 pub mod closed_forms;
+pub mod conjugate_gradient;
 pub mod grid;
 pub mod kernels;
 pub mod material;

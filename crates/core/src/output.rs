@@ -1,6 +1,7 @@
 //! What a run hands to a result writer: particle fields per frame, scalar diagnostics per
 //! frame and the final metrics. The core knows no file format; `mpm-io` writes Zarr.
 
+use crate::physics::Table;
 use serde::Serialize;
 
 /// A particle field written per frame; `shape` is the per-particle shape (`[]`, `[D]`,
@@ -190,4 +191,8 @@ pub struct Metrics {
     /// iterations, say) and of the quasi-static relaxation iterations.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub physics: std::collections::BTreeMap<String, f64>,
+    /// Tables the physics operators kept over the run (voids, fill history) by name; the
+    /// result store also holds each as the array `tables/<name>`.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub tables: std::collections::BTreeMap<String, Table>,
 }

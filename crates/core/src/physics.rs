@@ -190,13 +190,26 @@ pub struct PhysicsFault {
     pub message: String,
 }
 
-/// What operators report back: a fault that stops the run, and figures for the metrics.
+/// A table of numbers an operator keeps over the run (one row per void, a fill history);
+/// written to the metrics and to the result store's `tables/<name>` array.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Table {
+    /// Column names, one per number in a row.
+    pub columns: Vec<String>,
+    /// Rows, each with one number per column.
+    pub rows: Vec<Vec<f64>>,
+}
+
+/// What operators report back: a fault that stops the run, figures and tables for the
+/// metrics. It persists over the whole run.
 #[derive(Clone, Debug, Default)]
 pub struct PhysicsReport {
     /// Set to stop the run with a diagnostic.
     pub fault: Option<PhysicsFault>,
     /// Largest value of each named figure over the run (`thermal.solver_iterations`).
     pub maxima: Vec<(String, f64)>,
+    /// Named tables operators keep over the run (`underfill.voids`), in creation order.
+    pub tables: Vec<(String, Table)>,
 }
 
 impl PhysicsReport {
@@ -206,6 +219,28 @@ impl PhysicsReport {
             Some((_, v)) => *v = v.max(value),
             None => self.maxima.push((name.to_string(), value)),
         }
+    }
+
+    /// The table `name`, created empty with `columns` when missing (an existing table keeps
+    /// its columns and rows, so operators can add or edit rows in later steps).
+    pub fn table_mut(&mut self, name: &str, columns: &[&str]) -> &mut Table {
+        let i = match self.tables.iter().position(|(n, _)| n == name) {
+            Some(i) => i,
+            None => {
+                let table = Table {
+                    columns: columns.iter().map(|c| c.to_string()).collect(),
+                    rows: Vec::new(),
+                };
+                self.tables.push((name.to_string(), table));
+                self.tables.len() - 1
+            }
+        };
+        &mut self.tables[i].1
+    }
+
+    /// The table `name`, if an operator created it.
+    pub fn table(&self, name: &str) -> Option<&Table> {
+        self.tables.iter().find(|(n, _)| n == name).map(|(_, t)| t)
     }
 
     /// Stops the run (the first fault wins).
@@ -467,6 +502,29 @@ mod tests {
         let issues = bad.check("k", "> 0", |v| v > 0.0);
         assert_eq!(issues.len(), 2);
         assert_eq!(issues[0].path, "k[1][1]");
+    }
+
+    #[test]
+    fn table_mut_creates_once_and_keeps_rows_between_calls() {
+        let mut report = PhysicsReport::default();
+        assert!(report.table("voids").is_none());
+        report
+            .table_mut("voids", &["x", "volume"])
+            .rows
+            .push(vec![1.0, 2.0]);
+        // A later call (a later step) finds the same table; its columns argument is ignored.
+        let voids = report.table_mut("voids", &["other"]);
+        assert_eq!(voids.columns, ["x", "volume"]);
+        voids.rows[0][1] = 3.0;
+        voids.rows.push(vec![4.0, 5.0]);
+        report.table_mut("history", &["t"]);
+        assert_eq!(report.tables.len(), 2);
+        assert_eq!(report.tables[0].0, "voids");
+        assert_eq!(
+            report.table("voids").map(|t| t.rows.clone()),
+            Some(vec![vec![1.0, 3.0], vec![4.0, 5.0]])
+        );
+        assert_eq!(report.table("history").map(|t| t.rows.len()), Some(0));
     }
 
     #[test]

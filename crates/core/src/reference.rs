@@ -1,7 +1,8 @@
 //! Reference solutions a run measures its error against (closed forms and a shooting solve).
 
 use crate::closed_forms::{
-    kamal_sourour_isothermal, neumann_lambda, semi_infinite_temperature, slab_temperature,
+    capillary_fill_time, capillary_front, kamal_sourour_isothermal, neumann_lambda,
+    poiseuille_startup_profile, semi_infinite_temperature, slab_temperature,
 };
 use crate::math::Vector;
 use crate::output::Comparison;
@@ -19,6 +20,9 @@ pub struct ReferenceTracker {
     comparisons: Vec<Comparison>,
     /// Neumann's constant of a Stefan reference.
     lambda: f64,
+    /// Time and measured front of every frame observed so far (capillary filling), until
+    /// the front reached the end.
+    fronts: Vec<(f64, f64)>,
 }
 
 impl ReferenceTracker {
@@ -72,6 +76,7 @@ impl ReferenceTracker {
             expected,
             comparisons: Vec::new(),
             lambda,
+            fronts: Vec::new(),
         }
     }
 
@@ -101,6 +106,12 @@ impl ReferenceTracker {
             }
             Reference::AdiabaticCure { .. } => {
                 "largest |T - T0 - (H/c) alpha| over particles and frames, divided by H/c"
+            }
+            Reference::CapillaryFilling { .. } => {
+                "relative L2 error of the liquid front position over frames (capillary filling between plates, x² = hσcosθ t/(3μ))"
+            }
+            Reference::PoiseuilleStartup { .. } => {
+                "RMS flow velocity error over particles and frames / steady centre-line velocity (plane Poiseuille start-up, series solution)"
             }
         }
     }
@@ -290,7 +301,112 @@ impl ReferenceTracker {
                 }
                 self.denominator = 1.0;
             }
+            Reference::CapillaryFilling {
+                length,
+                gap,
+                surface_tension,
+                contact_angle,
+                viscosity,
+                ..
+            } => {
+                let Some(fill) = particles.shared.get("fill") else {
+                    return;
+                };
+                let (mut liquid, mut total) = (0.0, 0.0);
+                for (f, v) in fill.iter().zip(&particles.volume0) {
+                    liquid += f * v;
+                    total += v;
+                }
+                let front = length * liquid / total.max(1e-300);
+                let t_fill =
+                    capillary_fill_time(length, gap, surface_tension, contact_angle, viscosity);
+                self.observe_front(time, front, length, t_fill);
+                if time <= 0.0 {
+                    return;
+                }
+                let exact =
+                    capillary_front(time, length, gap, surface_tension, contact_angle, viscosity);
+                self.numerator += (front - exact).powi(2);
+                self.denominator += exact * exact;
+                self.measured = Some(front);
+                self.expected = Some(exact);
+            }
+            Reference::PoiseuilleStartup {
+                axis,
+                cross_axis,
+                wall,
+                gap,
+                pressure_gradient,
+                viscosity,
+                density,
+            } => {
+                let name = ["flow_velocity_x", "flow_velocity_y", "flow_velocity_z"];
+                let Some(velocity) = name.get(axis).and_then(|n| particles.shared.get(n)) else {
+                    return;
+                };
+                if time <= 0.0 || cross_axis >= D || velocity.is_empty() {
+                    return;
+                }
+                let exact =
+                    poiseuille_startup_profile(time, gap, pressure_gradient, viscosity, density);
+                let centre = pressure_gradient * gap * gap / (8.0 * viscosity);
+                let (mut sum, mut sum_exact) = (0.0, 0.0);
+                for (x, u) in particles.position.iter().zip(velocity) {
+                    let u_exact = exact(x[cross_axis] - wall);
+                    self.numerator += ((u - u_exact) / centre).powi(2);
+                    self.denominator += 1.0;
+                    sum += u;
+                    sum_exact += u_exact;
+                }
+                let n = velocity.len() as f64;
+                self.measured = Some(sum / n);
+                self.expected = Some(sum_exact / n);
+            }
         }
+    }
+
+    /// Records one frame's capillary front and, the first time it reaches the end of the gap,
+    /// the comparison `fill_time`.
+    ///
+    /// Under the law x² grows linearly in time, and the measured front stops at the end of
+    /// the gap, so the frame that reached the end says only that the gap filled before it.
+    /// The fill time is where the chord of x² through the last two frames before it reaches
+    /// `length²` (kept between those frames), or with a single frame before it, where the
+    /// chord from that frame to the full one does.
+    fn observe_front(&mut self, time: f64, front: f64, length: f64, reference: f64) {
+        let full = length * (1.0 - 1e-6);
+        if self.fronts.last().is_some_and(|&(_, x)| x >= full) {
+            return;
+        }
+        self.fronts.push((time, front));
+        if front < full {
+            return;
+        }
+        let k = self.fronts.len() - 1;
+        if k == 0 {
+            // Full at the first frame observed: when it filled is unknown.
+            return;
+        }
+        let target = length * length;
+        let (t_b, _) = self.fronts[k];
+        let (t_a, x_a) = self.fronts[k - 1];
+        let chord = |(t0, x0): (f64, f64), (t1, x1): (f64, f64)| {
+            let slope = (x1 * x1 - x0 * x0) / (t1 - t0);
+            (slope > 0.0 && slope.is_finite()).then(|| t1 + (target - x1 * x1) / slope)
+        };
+        let before = (k >= 2)
+            .then(|| chord(self.fronts[k - 2], (t_a, x_a)))
+            .flatten()
+            .map(|t| t.max(t_a).min(t_b));
+        let Some(measured) = before.or_else(|| chord((t_a, x_a), self.fronts[k])) else {
+            return;
+        };
+        self.comparisons.push(Comparison {
+            quantity: "fill_time".into(),
+            measured,
+            reference,
+            relative_difference: (measured - reference) / reference,
+        });
     }
 
     /// Adds one frame's squared temperature errors against `exact(position)`, each
@@ -326,7 +442,9 @@ impl ReferenceTracker {
             | Reference::SlabTemperature { .. }
             | Reference::SemiInfiniteTemperature { .. }
             | Reference::Stefan { .. }
-            | Reference::IsothermalCure { .. } => {
+            | Reference::IsothermalCure { .. }
+            | Reference::CapillaryFilling { .. }
+            | Reference::PoiseuilleStartup { .. } => {
                 (self.denominator > 0.0).then(|| (self.numerator / self.denominator).sqrt())
             }
             Reference::AdiabaticCure { .. } => (self.denominator > 0.0).then_some(self.numerator),
@@ -442,6 +560,141 @@ pub fn heavy_elastica_tip_deflection(alpha: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::physics::SharedFieldSpec;
+
+    /// Particles at `positions` with volumes `volumes` and one shared field `name`.
+    fn particles(positions: &[[f64; 2]], volumes: &[f64], name: &'static str) -> Particles<2> {
+        let n = positions.len();
+        let mut shared = crate::physics::ParticleFields::default();
+        shared.add(SharedFieldSpec { name, initial: 0.0 }, n);
+        Particles {
+            position: positions
+                .iter()
+                .map(|p| Vector::<2>::new(p[0], p[1]))
+                .collect(),
+            velocity: vec![Vector::<2>::zeros(); n],
+            mass: vec![1.0; n],
+            volume0: volumes.to_vec(),
+            deformation_gradient: Vec::new(),
+            stress: Vec::new(),
+            affine: Vec::new(),
+            velocity_gradient: Vec::new(),
+            half_size: Vec::new(),
+            initial_position: Vec::new(),
+            id: (0..n as u32).collect(),
+            groups: Vec::new(),
+            shared,
+        }
+    }
+
+    fn capillary() -> Reference {
+        Reference::CapillaryFilling {
+            axis: 0,
+            entrance: 0.0,
+            length: 4e-3,
+            gap: 5e-5,
+            surface_tension: 0.03,
+            contact_angle: 0.0,
+            viscosity: 2.0,
+        }
+    }
+
+    /// Sets the fill of four equal-volume particles so the measured front is `front` of
+    /// `length` (the first particles full, the next one partly).
+    fn set_front(p: &mut Particles<2>, front: f64, length: f64) {
+        let fill = p.shared.get_mut("fill").unwrap();
+        let filled = 4.0 * front / length;
+        for (i, f) in fill.iter_mut().enumerate() {
+            *f = (filled - i as f64).clamp(0.0, 1.0);
+        }
+    }
+
+    #[test]
+    fn capillary_filling_tracks_the_front_and_the_fill_time() {
+        let (length, t_fill) = (4e-3, capillary_fill_time(4e-3, 5e-5, 0.03, 0.0, 2.0));
+        let mut p = particles(&[[0.0; 2]; 4], &[1.0, 1.0, 1.0, 1.0], "fill");
+        let mut r = ReferenceTracker::new(capillary());
+        // Frames every t_fill/8, the front following the law exactly (held at the end).
+        for k in 0..=12 {
+            let t = k as f64 * t_fill / 8.0;
+            set_front(&mut p, length * (t / t_fill).sqrt().min(1.0), length);
+            r.observe(&p, t, k == 12);
+            if k < 8 {
+                assert!(r.comparisons().is_empty(), "{k}");
+            }
+        }
+        assert!(r.error().unwrap() < 1e-12, "{:?}", r.error());
+        assert_eq!(r.measured(), Some(length));
+        assert!((r.expected().unwrap() - length).abs() < 1e-12 * length);
+        let c = r.comparisons();
+        assert_eq!(c.len(), 1);
+        assert_eq!(c[0].quantity, "fill_time");
+        assert!((c[0].reference - t_fill).abs() < 1e-12 * t_fill);
+        assert!(c[0].relative_difference.abs() < 1e-9, "{:?}", c[0]);
+
+        // Filling between frames (at 7.5 of 8 frame intervals): the frame after says only
+        // "full"; the chord of the frames before still finds the fill time.
+        let mut r = ReferenceTracker::new(capillary());
+        let slow = t_fill * 8.0 / 7.5;
+        for k in 0..=10 {
+            let t = k as f64 * t_fill / 8.0;
+            set_front(&mut p, length * (t / slow).sqrt().min(1.0), length);
+            r.observe(&p, t, k == 10);
+        }
+        let c = r.comparisons();
+        assert_eq!(c.len(), 1);
+        assert!((c[0].measured - slow).abs() < 1e-9 * slow, "{:?}", c[0]);
+        // The front lags the law, and the error says by how much.
+        assert!(r.error().unwrap() > 0.01);
+    }
+
+    #[test]
+    fn capillary_filling_without_reaching_the_end_has_no_fill_time() {
+        let t_fill = capillary_fill_time(4e-3, 5e-5, 0.03, 0.0, 2.0);
+        let mut p = particles(&[[0.0; 2]; 4], &[1.0, 1.0, 1.0, 1.0], "fill");
+        let mut r = ReferenceTracker::new(capillary());
+        r.observe(&p, 0.0, false);
+        assert!(r.error().is_none());
+        // A front at half the exact one: relative L2 error 0.5.
+        set_front(&mut p, 0.5 * 4e-3 * 0.5f64.sqrt(), 4e-3);
+        r.observe(&p, 0.5 * t_fill, true);
+        assert!((r.error().unwrap() - 0.5).abs() < 1e-12);
+        assert!(r.comparisons().is_empty());
+    }
+
+    #[test]
+    fn poiseuille_startup_error_is_relative_to_the_centre_line_velocity() {
+        let (h, g, mu, rho) = (1e-3, 1e4, 0.5, 1000.0);
+        let reference = Reference::PoiseuilleStartup {
+            axis: 0,
+            cross_axis: 1,
+            wall: 2e-3,
+            gap: h,
+            pressure_gradient: g,
+            viscosity: mu,
+            density: rho,
+        };
+        let ys = [0.125e-3, 0.375e-3, 0.625e-3, 0.875e-3];
+        let positions: Vec<[f64; 2]> = ys.iter().map(|y| [0.0, 2e-3 + y]).collect();
+        let mut p = particles(&positions, &[1.0; 4], "flow_velocity_x");
+        let mut r = ReferenceTracker::new(reference);
+        r.observe(&p, 0.0, false);
+        assert!(r.error().is_none());
+        let t = 0.1 * rho * h * h / mu;
+        let exact = poiseuille_startup_profile(t, h, g, mu, rho);
+        let centre = g * h * h / (8.0 * mu);
+        let u: Vec<f64> = ys.iter().map(|&y| exact(y) + 0.01 * centre).collect();
+        p.shared
+            .get_mut("flow_velocity_x")
+            .unwrap()
+            .copy_from_slice(&u);
+        r.observe(&p, t, true);
+        assert!((r.error().unwrap() - 0.01).abs() < 1e-12, "{:?}", r.error());
+        let mean_exact = ys.iter().map(|&y| exact(y)).sum::<f64>() / 4.0;
+        assert!((r.expected().unwrap() - mean_exact).abs() < 1e-12 * centre);
+        assert!((r.measured().unwrap() - mean_exact - 0.01 * centre).abs() < 1e-12 * centre);
+    }
 
     #[test]
     fn elastica_matches_linear_beam_theory_for_small_loads() {

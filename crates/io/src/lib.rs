@@ -7,6 +7,8 @@
 //! - `particles/<field>`: float64 `[frame, particle, components...]`, one chunk per frame,
 //!   zstd-compressed
 //! - `diagnostics/<name>`: float64 `[frame]` (energies, max speed, min det F, dt, step)
+//! - `tables/<name>`: float64 `[row, column]`, one chunk, attribute `columns` (tables the
+//!   physics operators kept, such as voids; the group exists only when there are tables)
 //! - root attributes: `scene`, `mpm_version`, `dimension`, `particles`, `metrics`
 
 mod vtk;
@@ -14,7 +16,7 @@ mod zarr_reader;
 mod zarr_writer;
 
 pub use vtk::export_vtk;
-pub use zarr_reader::{ResultStore, read_particles};
+pub use zarr_reader::{ResultStore, TableData, read_particles};
 pub use zarr_writer::ZarrSink;
 
 /// Failures reading or writing result stores.

@@ -8,6 +8,9 @@ use zarrs::array::Array;
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::Group;
 
+/// A stored table: its column names and its rows (one number per column each).
+pub type TableData = (Vec<String>, Vec<Vec<f64>>);
+
 /// An open result store.
 pub struct ResultStore {
     path: PathBuf,
@@ -111,6 +114,55 @@ impl ResultStore {
             .retrieve_chunk::<Vec<f64>>(&chunk)
             .map_err(|e| zerr(&self.path, e))?;
         Ok((shape[1..].to_vec(), values))
+    }
+
+    /// A table the physics operators kept (`tables/<name>`): its column names and rows;
+    /// `None` when the store has no such table.
+    pub fn table(&self, name: &str) -> Result<Option<TableData>, IoError> {
+        if !crate::zarr_writer::valid_table_name(name) {
+            return Ok(None);
+        }
+        if !self
+            .path
+            .join("tables")
+            .join(name)
+            .join("zarr.json")
+            .is_file()
+        {
+            return Ok(None);
+        }
+        let layout = |message: String| IoError::Layout {
+            path: self.path.display().to_string(),
+            message,
+        };
+        let array = Array::open(self.store.clone(), &format!("/tables/{name}"))
+            .map_err(|e| zerr(&self.path, e))?;
+        let columns: Vec<String> = array
+            .attributes()
+            .get("columns")
+            .and_then(|c| c.as_array())
+            .and_then(|c| c.iter().map(|n| n.as_str().map(String::from)).collect())
+            .ok_or_else(|| layout(format!("table `{name}` has no `columns` attribute")))?;
+        let &[rows, width] = array.shape() else {
+            return Err(layout(format!("table `{name}` is not two-dimensional")));
+        };
+        if width != columns.len() as u64 {
+            return Err(layout(format!(
+                "table `{name}` has {width} columns but names {}",
+                columns.len()
+            )));
+        }
+        if rows == 0 || width == 0 {
+            return Ok(Some((columns, vec![Vec::new(); rows as usize])));
+        }
+        let values = array
+            .retrieve_array_subset::<Vec<f64>>(&array.subset_all())
+            .map_err(|e| zerr(&self.path, e))?;
+        let rows = values
+            .chunks_exact(width as usize)
+            .map(<[f64]>::to_vec)
+            .collect();
+        Ok(Some((columns, rows)))
     }
 
     /// Number of frames stored.

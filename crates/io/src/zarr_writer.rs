@@ -3,6 +3,8 @@
 
 use crate::IoError;
 use mpm_core::output::{FRAME_DIAGNOSTICS, Frame, Metrics, OutputError, OutputSink, RunInfo};
+use mpm_core::physics::Table;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use zarrs::array::codec::ZstdCodec;
@@ -177,6 +179,77 @@ impl OutputSink for ZarrSink {
         };
         let value = serde_json::to_value(metrics).map_err(|e| OutputError(e.to_string()))?;
         root.attributes_mut().insert("metrics".into(), value);
-        root.store_metadata().map_err(|e| out(zerr(&path, e)))
+        root.store_metadata().map_err(|e| out(zerr(&path, e)))?;
+        // After the metrics, so a table that cannot be written loses nothing else.
+        self.write_tables(&metrics.tables).map_err(out)
     }
+}
+
+impl ZarrSink {
+    /// Writes each table as the float64 array `tables/<name>`, `[row, column]`, one chunk,
+    /// with its column names in the attribute `columns` (no `tables` group without tables).
+    fn write_tables(&self, tables: &BTreeMap<String, Table>) -> Result<(), IoError> {
+        let (Some(store), false) = (self.store.as_ref(), tables.is_empty()) else {
+            return Ok(());
+        };
+        let path = &self.path;
+        let layout = |message: String| IoError::Layout {
+            path: path.display().to_string(),
+            message,
+        };
+        for (name, table) in tables {
+            if !valid_table_name(name) {
+                return Err(layout(format!(
+                    "table name `{name}` cannot name a Zarr array (empty, `/`, `.`, `..` or `__`)"
+                )));
+            }
+            let width = table.columns.len();
+            if let Some((i, row)) = table
+                .rows
+                .iter()
+                .enumerate()
+                .find(|(_, r)| r.len() != width)
+            {
+                return Err(layout(format!(
+                    "table `{name}` row {i} has {} numbers for {width} columns",
+                    row.len()
+                )));
+            }
+        }
+        GroupBuilder::new()
+            .build(store.clone(), "/tables")
+            .map_err(|e| zerr(path, e))?
+            .store_metadata()
+            .map_err(|e| zerr(path, e))?;
+        for (name, table) in tables {
+            let shape = vec![table.rows.len() as u64, table.columns.len() as u64];
+            // Chunk extents must be positive; an empty table stores no chunk at all.
+            let chunk: Vec<u64> = shape.iter().map(|&s| s.max(1)).collect();
+            let mut attrs = serde_json::Map::new();
+            attrs.insert("columns".into(), table.columns.clone().into());
+            let array = ArrayBuilder::new(shape.clone(), chunk, data_type::float64(), f64::NAN)
+                .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
+                .dimension_names(Some(["row", "column"]))
+                .attributes(attrs)
+                .build(store.clone(), &format!("/tables/{name}"))
+                .map_err(|e| zerr(path, e))?;
+            array.store_metadata().map_err(|e| zerr(path, e))?;
+            if shape.iter().all(|&s| s > 0) {
+                let values: Vec<f64> = table.rows.concat();
+                array
+                    .store_chunk(&[0, 0], values.as_slice())
+                    .map_err(|e| zerr(path, e))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether `name` can be a Zarr array name under `tables/`.
+pub(crate) fn valid_table_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.contains('/')
+        && name != "."
+        && name != ".."
+        && !name.starts_with("__")
 }

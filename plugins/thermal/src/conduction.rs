@@ -2,8 +2,8 @@
 //! (explicit or implicit), G2P of the temperature change, and the thermal free strain.
 
 use crate::boundary::Face;
-use crate::conjugate_gradient::{Work, solve};
 use crate::parameters::{Integrator, ThermalParameters};
+use mpm_core::conjugate_gradient::{Work, solve};
 use mpm_core::math::{Matrix, Vector, determinant};
 use mpm_core::physics::{
     FREE_STRAIN, HEAT_RELEASE, Interpolation, PLASTIC_WORK, PhysicsContext, PhysicsFault,

@@ -11,7 +11,6 @@
 
 mod boundary;
 mod conduction;
-mod conjugate_gradient;
 mod parameters;
 
 pub use boundary::{Convection, ThermalBoundary};

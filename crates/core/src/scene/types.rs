@@ -661,6 +661,49 @@ pub enum Reference {
         /// Specific heat, J/(kg K).
         specific_heat: f64,
     },
+    /// Capillary filling of a parallel-plate gap from a reservoir (Washburn/Lucas law): the
+    /// front is `x = √(h σ cosθ t / (3μ))` from the entrance, held at `length` once the gap
+    /// is full (fill time `3μL²/(hσ cosθ)`). The measured front is `length × (liquid volume /
+    /// gap volume)` from the shared particle field `fill` of the particles in the gap; error:
+    /// relative L2 error of the front over the output frames after t = 0. The comparison
+    /// `fill_time` appears once the front reached the end.
+    CapillaryFilling {
+        /// Axis along the gap (the flow direction).
+        axis: usize,
+        /// Coordinate of the gap's entrance along the axis (where the reservoir is).
+        entrance: f64,
+        /// Length of the gap along the axis, m.
+        length: f64,
+        /// Height of the gap between the plates, m.
+        gap: f64,
+        /// Surface tension of the liquid, N/m.
+        surface_tension: f64,
+        /// Contact angle of the liquid on the plates, degrees, 0 <= θ < 90 (wetting).
+        contact_angle: f64,
+        /// Dynamic viscosity of the liquid, Pa s.
+        viscosity: f64,
+    },
+    /// Plane Poiseuille flow starting from rest under a constant pressure gradient between
+    /// no-slip plates at `wall` and `wall + gap` on `cross_axis` (Fourier series solution).
+    /// The measured velocity is the shared particle field `flow_velocity_x`, `_y` or `_z`
+    /// for `axis` 0, 1 or 2; error: RMS velocity error over particles and output frames
+    /// after t = 0, divided by the steady centre-line velocity `G h²/(8μ)`.
+    PoiseuilleStartup {
+        /// Axis of the flow (the direction of the pressure drop).
+        axis: usize,
+        /// Axis across the plates.
+        cross_axis: usize,
+        /// Coordinate of the lower plate on `cross_axis`.
+        wall: f64,
+        /// Distance between the plates, m.
+        gap: f64,
+        /// Pressure gradient G = −dp/dx along the flow axis, > 0, Pa/m.
+        pressure_gradient: f64,
+        /// Dynamic viscosity, Pa s.
+        viscosity: f64,
+        /// Density, kg/m³.
+        density: f64,
+    },
 }
 
 /// Thermal properties of one phase in a Stefan reference.
@@ -676,8 +719,8 @@ pub struct PhaseProperties {
 }
 
 impl Reference {
-    /// The axis the reference measures along (bar, beam, impact or heat-flow axis); none
-    /// for references without one.
+    /// The axis the reference measures along (bar, beam, impact, heat-flow or liquid-flow
+    /// axis); none for references without one.
     pub fn axis(&self) -> Option<usize> {
         match self {
             Reference::VibratingBar { axis, .. }
@@ -685,7 +728,9 @@ impl Reference {
             | Reference::TaylorBar { axis, .. }
             | Reference::SlabTemperature { axis, .. }
             | Reference::SemiInfiniteTemperature { axis, .. }
-            | Reference::Stefan { axis, .. } => Some(*axis),
+            | Reference::Stefan { axis, .. }
+            | Reference::CapillaryFilling { axis, .. }
+            | Reference::PoiseuilleStartup { axis, .. } => Some(*axis),
             Reference::IsothermalCure { .. } | Reference::AdiabaticCure { .. } => None,
         }
     }

@@ -616,6 +616,56 @@ impl Validator {
                 self.positive("reference.heat_of_reaction", *heat_of_reaction);
                 self.positive("reference.specific_heat", *specific_heat);
             }
+            Reference::CapillaryFilling {
+                entrance,
+                length,
+                gap,
+                surface_tension,
+                contact_angle,
+                viscosity,
+                ..
+            } => {
+                if !entrance.is_finite() {
+                    self.err("reference.entrance", "must be finite");
+                }
+                self.positive("reference.length", *length);
+                self.positive("reference.gap", *gap);
+                self.positive("reference.surface_tension", *surface_tension);
+                if !(*contact_angle >= 0.0 && *contact_angle < 90.0) {
+                    self.err(
+                        "reference.contact_angle",
+                        format!(
+                            "must be at least 0 and below 90 degrees (a wetting liquid; got {contact_angle})"
+                        ),
+                    );
+                }
+                self.positive("reference.viscosity", *viscosity);
+            }
+            Reference::PoiseuilleStartup {
+                axis,
+                cross_axis,
+                wall,
+                gap,
+                pressure_gradient,
+                viscosity,
+                density,
+            } => {
+                if *cross_axis >= self.dim {
+                    self.err(
+                        "reference.cross_axis",
+                        format!("must be below {}", self.dim),
+                    );
+                } else if cross_axis == axis {
+                    self.err("reference.cross_axis", "must differ from reference.axis");
+                }
+                if !wall.is_finite() {
+                    self.err("reference.wall", "must be finite");
+                }
+                self.positive("reference.gap", *gap);
+                self.positive("reference.pressure_gradient", *pressure_gradient);
+                self.positive("reference.viscosity", *viscosity);
+                self.positive("reference.density", *density);
+            }
         }
     }
 
@@ -1111,4 +1161,172 @@ pub fn read_csv_particles(
         vol.push(v);
     }
     Ok((pos, vol))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The issues `check_reference` finds with a reference given as JSON, in a `dim`-D scene.
+    fn reference_issues(dim: usize, json: serde_json::Value) -> Vec<(String, String)> {
+        let r: Reference = serde_json::from_value(json).expect("a reference");
+        let mut v = Validator {
+            issues: Vec::new(),
+            dim,
+        };
+        v.check_reference(&r);
+        v.issues.into_iter().map(|i| (i.path, i.message)).collect()
+    }
+
+    fn capillary(overrides: serde_json::Value) -> serde_json::Value {
+        let mut r = serde_json::json!({
+            "type": "capillary_filling", "axis": 0, "entrance": 0.0, "length": 5e-3,
+            "gap": 5e-5, "surface_tension": 0.03, "contact_angle": 30.0, "viscosity": 2.0
+        });
+        for (k, v) in overrides.as_object().expect("an object") {
+            r[k] = v.clone();
+        }
+        r
+    }
+
+    fn poiseuille(overrides: serde_json::Value) -> serde_json::Value {
+        let mut r = serde_json::json!({
+            "type": "poiseuille_startup", "axis": 0, "cross_axis": 1, "wall": 0.0,
+            "gap": 1e-3, "pressure_gradient": 1e4, "viscosity": 0.5, "density": 1000.0
+        });
+        for (k, v) in overrides.as_object().expect("an object") {
+            r[k] = v.clone();
+        }
+        r
+    }
+
+    /// Asserts exactly one issue, at `path`, whose message contains `words`.
+    fn assert_one(issues: &[(String, String)], path: &str, words: &str) {
+        assert_eq!(issues.len(), 1, "{issues:?}");
+        assert_eq!(issues[0].0, path, "{issues:?}");
+        assert!(issues[0].1.contains(words), "{issues:?}");
+    }
+
+    #[test]
+    fn capillary_filling_reference_checks_name_their_json_paths() {
+        assert!(reference_issues(2, capillary(serde_json::json!({}))).is_empty());
+        assert!(reference_issues(3, capillary(serde_json::json!({"axis": 2}))).is_empty());
+        assert!(
+            reference_issues(2, capillary(serde_json::json!({"contact_angle": 0.0}))).is_empty()
+        );
+        let cases = [
+            (serde_json::json!({"axis": 2}), "reference.axis", "below 2"),
+            (
+                serde_json::json!({"length": 0.0}),
+                "reference.length",
+                "> 0",
+            ),
+            (serde_json::json!({"gap": -1e-5}), "reference.gap", "> 0"),
+            (
+                serde_json::json!({"surface_tension": 0.0}),
+                "reference.surface_tension",
+                "> 0",
+            ),
+            (
+                serde_json::json!({"contact_angle": 90.0}),
+                "reference.contact_angle",
+                "below 90",
+            ),
+            (
+                serde_json::json!({"contact_angle": -1.0}),
+                "reference.contact_angle",
+                "at least 0",
+            ),
+            (
+                serde_json::json!({"viscosity": -2.0}),
+                "reference.viscosity",
+                "> 0",
+            ),
+        ];
+        for (overrides, path, words) in cases {
+            assert_one(&reference_issues(2, capillary(overrides)), path, words);
+        }
+        // Non-finite numbers cannot be written in JSON; check the typed value directly.
+        let mut v = Validator {
+            issues: Vec::new(),
+            dim: 2,
+        };
+        v.check_reference(&Reference::CapillaryFilling {
+            axis: 0,
+            entrance: f64::NAN,
+            length: f64::INFINITY,
+            gap: 5e-5,
+            surface_tension: 0.03,
+            contact_angle: f64::NAN,
+            viscosity: 2.0,
+        });
+        let paths: Vec<&str> = v.issues.iter().map(|i| i.path.as_str()).collect();
+        assert_eq!(
+            paths,
+            [
+                "reference.entrance",
+                "reference.length",
+                "reference.contact_angle"
+            ]
+        );
+    }
+
+    #[test]
+    fn poiseuille_startup_reference_checks_name_their_json_paths() {
+        assert!(reference_issues(2, poiseuille(serde_json::json!({}))).is_empty());
+        assert!(
+            reference_issues(
+                3,
+                poiseuille(serde_json::json!({"axis": 2, "cross_axis": 0}))
+            )
+            .is_empty()
+        );
+        let cases = [
+            (serde_json::json!({"axis": 2}), "reference.axis", "below 2"),
+            (
+                serde_json::json!({"cross_axis": 2}),
+                "reference.cross_axis",
+                "below 2",
+            ),
+            (
+                serde_json::json!({"cross_axis": 0}),
+                "reference.cross_axis",
+                "differ",
+            ),
+            (serde_json::json!({"gap": 0.0}), "reference.gap", "> 0"),
+            (
+                serde_json::json!({"pressure_gradient": -1e4}),
+                "reference.pressure_gradient",
+                "> 0",
+            ),
+            (
+                serde_json::json!({"viscosity": 0.0}),
+                "reference.viscosity",
+                "> 0",
+            ),
+            (
+                serde_json::json!({"density": -1.0}),
+                "reference.density",
+                "> 0",
+            ),
+        ];
+        for (overrides, path, words) in cases {
+            assert_one(&reference_issues(2, poiseuille(overrides)), path, words);
+        }
+        let mut v = Validator {
+            issues: Vec::new(),
+            dim: 2,
+        };
+        v.check_reference(&Reference::PoiseuilleStartup {
+            axis: 0,
+            cross_axis: 1,
+            wall: f64::INFINITY,
+            gap: 1e-3,
+            pressure_gradient: f64::NAN,
+            viscosity: 0.5,
+            density: 1000.0,
+        });
+        let paths: Vec<&str> = v.issues.iter().map(|i| i.path.as_str()).collect();
+        assert_eq!(paths, ["reference.wall", "reference.pressure_gradient"]);
+    }
 }

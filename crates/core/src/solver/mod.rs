@@ -1118,6 +1118,7 @@ where
             threads: rayon::current_num_threads(),
             diagnostic,
             physics: self.report.maxima.iter().cloned().collect(),
+            tables: self.report.tables.iter().cloned().collect(),
         };
         sink.finish(&metrics)?;
         Ok(metrics)

@@ -1,25 +1,32 @@
 //! Jacobi-preconditioned conjugate gradients for a symmetric positive definite operator
-//! given as a function (matrix-free), on the free nodes only: nodes where the inverse
+//! given as a function (matrix-free), on the free unknowns only (shared by the physics
+//! plugins: heat conduction, the underfill pressure): nodes where the inverse
 //! diagonal is 0 (fixed temperature, or no material) keep their value.
 
 /// How a solve ended.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Solve {
+pub struct Solve {
+    /// Iterations taken.
     pub iterations: u32,
+    /// Whether the residual reached the tolerance.
     pub converged: bool,
 }
 
 /// Work vectors of the solve, one number per node each.
-pub(crate) struct Work<'a> {
+pub struct Work<'a> {
+    /// Residual.
     pub r: &'a mut [f64],
+    /// Preconditioned residual.
     pub z: &'a mut [f64],
+    /// Search direction.
     pub p: &'a mut [f64],
+    /// Operator times the search direction.
     pub ap: &'a mut [f64],
 }
 
 /// Solves `A x = b` for the free nodes (`inverse_diagonal[i] > 0`), starting from `x`.
 /// Stops when ‖r‖ ≤ `tolerance`·‖b‖ on the free nodes.
-pub(crate) fn solve(
+pub fn solve(
     mut apply: impl FnMut(&[f64], &mut [f64]),
     inverse_diagonal: &[f64],
     b: &[f64],
