@@ -58,6 +58,35 @@ pub enum Command {
         #[arg(long)]
         vtk: PathBuf,
     },
+    /// Draw one frame of a 2D result store as a PNG picture (for documentation).
+    ///
+    /// The particles are squares of their spacing, coloured by a field (viridis, NaN grey)
+    /// with a colour bar, on equal axes in m, mm or µm; the title names the scene, the field
+    /// and the time. With --voids, the voids listed in a table of the store's metrics
+    /// (columns x, y, area in m², optional id) are marked as red circles: e.g. the fill
+    /// pattern of an underfill between a chip and its substrate with the trapped air.
+    Render {
+        /// Result store (`results/<name>.zarr`) of a 2D run.
+        store: PathBuf,
+        /// Particle field to colour by: a scalar, or a vector or tensor with --component.
+        #[arg(long)]
+        field: String,
+        /// Frame to draw; negative counts from the end (default: -1, the last).
+        #[arg(long, allow_negative_numbers = true)]
+        frame: Option<i64>,
+        /// Component of a vector or tensor field, as a flat index (stress xy in 2D is 1).
+        #[arg(long, default_value_t = 0)]
+        component: usize,
+        /// PNG file to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Title (default: "<scene> — <field> at t = <time> s").
+        #[arg(long)]
+        title: Option<String>,
+        /// Mark the voids of this table of the store's metrics (`metrics.tables.TABLE`).
+        #[arg(long, value_name = "TABLE")]
+        voids: Option<String>,
+    },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
     /// List the registered plugins and their material types (of a server with --server).
@@ -324,6 +353,40 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         Command::Export { store, vtk } => {
             let pvd = mpm_io::export_vtk(&store, &vtk)?;
             println!("wrote {}", pvd.display());
+            Ok(ExitStatus::Success)
+        }
+        Command::Render {
+            store,
+            field,
+            frame,
+            component,
+            out,
+            title,
+            voids,
+        } => {
+            let r = crate::render::render(&crate::render::RenderArgs {
+                store,
+                field,
+                frame,
+                component,
+                out: out.clone(),
+                title,
+                voids,
+            })?;
+            let voids = r
+                .voids
+                .map(|n| format!(", {n} voids marked"))
+                .unwrap_or_default();
+            println!(
+                "wrote {} (frame {}, t = {} s, {} particles, {} from {} to {}{voids})",
+                out.display(),
+                r.frame,
+                crate::render::short(r.time),
+                r.particles,
+                r.label,
+                crate::render::short(r.range.0),
+                crate::render::short(r.range.1),
+            );
             Ok(ExitStatus::Success)
         }
         Command::Schema => {

@@ -11,11 +11,16 @@ use std::sync::Once;
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
 
-/// Writes `study.png` and `study.svg` into `dir`.
-pub fn draw(dir: &Path, title: &str, rows: &[StudyRow]) -> anyhow::Result<()> {
+/// Registers the bundled font as "sans-serif" for plotters (once per process).
+pub(crate) fn register_font() {
     REGISTER.call_once(|| {
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
     });
+}
+
+/// Writes `study.png` and `study.svg` into `dir`.
+pub fn draw(dir: &Path, title: &str, rows: &[StudyRow]) -> anyhow::Result<()> {
+    register_font();
     let png = dir.join("study.png");
     let svg = dir.join("study.svg");
     draw_on(
