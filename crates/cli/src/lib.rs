@@ -6,6 +6,7 @@ mod commands;
 mod overrides;
 mod plot;
 mod progress;
+mod render;
 pub mod stability;
 pub mod study;
 
@@ -29,6 +30,9 @@ pub fn default_registry() -> Registry {
         .expect("built-in plugins have distinct names");
     registry
         .register(Box::new(mpm_phase_change::PhaseChangePlugin))
+        .expect("built-in plugins have distinct names");
+    registry
+        .register(Box::new(mpm_underfill::UnderfillPlugin))
         .expect("built-in plugins have distinct names");
     registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
     registry
