@@ -66,16 +66,7 @@ fn adiabatic_cure_keeps_its_heat() {
 /// Bad input is named by JSON path.
 #[test]
 fn phase_change_input_errors_name_their_path() {
-    let registry = mpm_cli::default_registry();
-    let path = common::example("stefan-one-phase.json");
-    let issues = |overrides: &[&str]| -> Vec<String> {
-        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-        match mpm_cli::load_scene(&path, &o, &registry) {
-            Ok(_) => panic!("accepted {overrides:?}"),
-            Err(mpm_cli::LoadError::Invalid(e)) => e.issues.iter().map(|i| i.to_string()).collect(),
-            Err(mpm_cli::LoadError::Io(e)) => panic!("{e:#}"),
-        }
-    };
+    let issues = |overrides: &[&str]| common::invalid_example("stefan-one-phase.json", overrides);
     let has = |lines: &[String], needle: &str| lines.iter().any(|l| l.contains(needle));
     let e = issues(&["physics.phase_change.materials.wax.melting.latent_heat=-1"]);
     assert!(

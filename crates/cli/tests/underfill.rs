@@ -192,16 +192,7 @@ fn edge_racing_traps_a_void_that_the_store_reports() {
 /// Bad input is named by JSON path.
 #[test]
 fn underfill_input_errors_name_their_path() {
-    let registry = mpm_cli::default_registry();
-    let path = common::example("capillary-gap.json");
-    let issues = |overrides: &[&str]| -> Vec<String> {
-        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-        match mpm_cli::load_scene(&path, &o, &registry) {
-            Ok(_) => panic!("accepted {overrides:?}"),
-            Err(mpm_cli::LoadError::Invalid(e)) => e.issues.iter().map(|i| i.to_string()).collect(),
-            Err(mpm_cli::LoadError::Io(e)) => panic!("{e:#}"),
-        }
-    };
+    let issues = |overrides: &[&str]| common::invalid_example("capillary-gap.json", overrides);
     let has = |lines: &[String], needle: &str| lines.iter().any(|l| l.contains(needle));
     let e = issues(&["physics.underfill.fluid.contact_angle=95"]);
     assert!(has(&e, "physics.underfill.fluid.contact_angle"), "{e:?}");

@@ -155,23 +155,18 @@ pub(crate) fn solve_pressure(
             }
             let mut v = diagonal[c] * x[c];
             // Couplings to full neighbours only (front values sit in the right-hand side).
-            let pairs = [
-                (c.checked_sub(stride_x), stride_x, 0usize, false),
-                (Some(c + stride_x), stride_x, 0, true),
-                (c.checked_sub(stride_y), stride_y, 1, false),
-                (Some(c + stride_y), stride_y, 1, true),
-            ];
-            for (nb, _, axis, upper) in pairs {
-                let Some(nb) = nb else { continue };
-                if nb >= x.len() || kinds[nb] != FULL {
-                    continue;
+            // A face across the lattice's edge has zero conductance, so an index that
+            // wraps to the next row couples nothing.
+            for (axis, stride) in [(0, stride_x), (1, stride_y)] {
+                if let Some(lower) = c.checked_sub(stride)
+                    && kinds[lower] == FULL
+                {
+                    v -= conductance[axis][lower] * x[lower];
                 }
-                let g = if upper {
-                    conductance[axis][c]
-                } else {
-                    conductance[axis][nb]
-                };
-                v -= g * x[nb];
+                let upper = c + stride;
+                if upper < x.len() && kinds[upper] == FULL {
+                    v -= conductance[axis][c] * x[upper];
+                }
             }
             y[c] = v;
         }

@@ -152,7 +152,7 @@ impl Underfill {
             lattice,
             state,
         });
-        self.locate(&mut ws, &ctx, |g| self.in_gap(g));
+        self.locate(&mut ws, &ctx);
         self.viscosity(&mut ws, &ctx);
         let air = ws.voids.update(&ws.lattice, &mut ws.state, 0.0, &p.air);
         // A first solve for the fluxes that set the first step (a steady one in a
@@ -171,16 +171,11 @@ impl Underfill {
     }
 
     /// Bins the gap's particles into cells.
-    fn locate<const D: usize>(
-        &self,
-        ws: &mut Workspace,
-        ctx: &PhysicsContext<'_, D>,
-        in_gap: impl Fn(&str) -> bool,
-    ) {
+    fn locate<const D: usize>(&self, ws: &mut Workspace, ctx: &PhysicsContext<'_, D>) {
         let pv = &ctx.particles;
         ws.cell_of_particle.fill(u32::MAX);
         for g in pv.groups {
-            if !in_gap(&g.name) {
+            if !self.in_gap(&g.name) {
                 continue;
             }
             for p in g.range.clone() {
@@ -288,7 +283,7 @@ impl Underfill {
         if dt <= 0.0 {
             return;
         }
-        self.locate(ws, &ctx, |g| self.in_gap(g));
+        self.locate(ws, &ctx);
         self.viscosity(ws, &ctx);
         if !self.solve(ws, &mut ctx, dt) {
             return;
@@ -333,8 +328,10 @@ impl Underfill {
         }
         if !ws.voids.records.is_empty() {
             let table = report.table_mut(VOIDS_TABLE, &VOID_COLUMNS);
-            table.rows.clear();
-            table.rows.extend(ws.voids.records.iter().map(|r| r.row()));
+            table.rows.resize_with(ws.voids.records.len(), Vec::new);
+            for (row, record) in table.rows.iter_mut().zip(&ws.voids.records) {
+                record.write_row(row);
+            }
         }
         if fill - ws.logged_fill >= 2e-3 || air.voids != ws.logged_voids || just_filled {
             ws.logged_fill = fill;

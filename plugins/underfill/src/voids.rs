@@ -46,9 +46,10 @@ pub(crate) struct VoidRecord {
 }
 
 impl VoidRecord {
-    /// The table row, in [`VOID_COLUMNS`] order.
-    pub fn row(&self) -> Vec<f64> {
-        vec![
+    /// Writes the table row, in [`VOID_COLUMNS`] order, into `row` (reusing its storage).
+    pub fn write_row(&self, row: &mut Vec<f64>) {
+        row.clear();
+        row.extend_from_slice(&[
             self.id as f64,
             self.closed_time,
             self.centroid[0],
@@ -58,7 +59,7 @@ impl VoidRecord {
             self.volume,
             self.pressure,
             self.filled_time,
-        ]
+        ]);
     }
 }
 

@@ -24,6 +24,17 @@ pub fn load_example(name: &str, overrides: &[&str]) -> ValidatedScene {
     load(&example(name), &o)
 }
 
+/// The issues (`path: message` lines) of an example made invalid by `overrides`; panics
+/// when the scene is accepted.
+pub fn invalid_example(name: &str, overrides: &[&str]) -> Vec<String> {
+    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    match mpm_cli::load_scene(&example(name), &o, &mpm_cli::default_registry()) {
+        Ok(_) => panic!("accepted {overrides:?}"),
+        Err(mpm_cli::LoadError::Invalid(e)) => e.issues.iter().map(|i| i.to_string()).collect(),
+        Err(mpm_cli::LoadError::Io(e)) => panic!("{e:#}"),
+    }
+}
+
 /// Runs a scene without writing results.
 pub fn run(scene: &ValidatedScene) -> Metrics {
     run_scene(scene, &mut NullSink, &mut |_: &Progress| Control::Continue).expect("run")
