@@ -11,13 +11,15 @@ use rayon::prelude::*;
 
 /// What one grid update applies.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct GridParams<const D: usize> {
+pub struct GridParams<const D: usize> {
+    /// Time step, seconds.
     pub dt: f64,
     /// Apply forces, gravity and damping (false: only turn momentum into velocity and
     /// apply boundary conditions, as after a velocity remap).
     pub forces: bool,
     /// Forces are in `grid.force` (FLIP) and the pre-force velocity is kept.
     pub flip: bool,
+    /// Velocity damping rate, 1/s.
     pub damping: f64,
     /// Time at the end of the step (obstacles move).
     pub time: f64,
@@ -26,7 +28,7 @@ pub(crate) struct GridParams<const D: usize> {
 /// Turns nodal momentum into velocity in place and applies forces and boundary conditions.
 /// Returns the work moving obstacles did on the grid, for the energy balance (damping and
 /// fixed walls only dissipate; that shows as a fall of the total energy).
-pub(crate) fn update_grid<const D: usize>(
+pub fn update_grid<const D: usize>(
     grid: &mut Grid<D>,
     boundaries: &Boundaries<D>,
     params: GridParams<D>,

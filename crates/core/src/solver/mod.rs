@@ -6,12 +6,12 @@
 
 mod binning;
 mod grid_to_particle;
-mod grid_update;
+pub mod grid_update;
 mod interpolation;
 mod parallel;
 mod particle_to_grid;
 mod stats;
-mod stencil;
+pub mod stencil;
 mod stress_update;
 mod timestep;
 mod volume_averaging;
@@ -473,6 +473,12 @@ where
             sort_counter: 0,
             _kernel: std::marker::PhantomData,
         }
+    }
+
+    /// The scene's walls and obstacles as they act on the grid (reduced-order runs reuse
+    /// them for their own grid updates).
+    pub fn boundaries(&self) -> &Boundaries<D> {
+        &self.boundaries
     }
 
     /// Simulated time.

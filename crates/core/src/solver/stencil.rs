@@ -5,20 +5,18 @@ use crate::kernels::{AxisWeights, Kernel};
 use crate::math::Vector;
 
 /// The weights of one particle on every axis, and the index of its first stencil node.
-pub(crate) struct Stencil<const D: usize> {
+pub struct Stencil<const D: usize> {
+    /// 1D weights along each axis (a single weight 1 along unused axes).
     pub axes: [AxisWeights; 3],
     /// Grid coordinate of the particle minus the base node, per axis.
     pub offset: [f64; 3],
+    /// Grid index of the first stencil node.
     pub base_index: usize,
 }
 
 /// Whether a particle's stencil lies on the grid.
 #[inline(always)]
-pub(crate) fn stencil_fits<const D: usize, K: Kernel>(
-    grid: &Grid<D>,
-    x: &Vector<D>,
-    half: f64,
-) -> bool {
+pub fn stencil_fits<const D: usize, K: Kernel>(grid: &Grid<D>, x: &Vector<D>, half: f64) -> bool {
     for d in 0..D {
         let xi = (x[d] - grid.origin[d]) * grid.inv_dx;
         if !xi.is_finite() {
