@@ -132,6 +132,12 @@ pub enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Reduced-order models: train on full runs, run, measure the error, sweep.
+    Rom {
+        /// What to do.
+        #[command(subcommand)]
+        command: crate::rom::RomCommand,
+    },
     /// Start the job service (HTTP API over a SQLite job queue).
     Serve {
         /// Address to listen on.
@@ -350,6 +356,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 _ => ExitStatus::Stopped,
             })
         }
+        Command::Rom { command } => crate::rom::run(command, &registry),
         Command::Export { store, vtk } => {
             let pvd = mpm_io::export_vtk(&store, &vtk)?;
             println!("wrote {}", pvd.display());

@@ -7,6 +7,7 @@ mod overrides;
 mod plot;
 mod progress;
 mod render;
+pub mod rom;
 pub mod stability;
 pub mod study;
 
