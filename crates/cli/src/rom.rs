@@ -80,6 +80,10 @@ pub struct StepArgs {
     /// Extra reach, in cells, of the neighbourhood searched around each sample.
     #[arg(long, default_value_t = 1.0)]
     pub margin: f64,
+    /// Let samples lie on the body's outermost cell layer too (by default they are drawn
+    /// from particles at least a cell inside, whose grid nodes are full).
+    #[arg(long)]
+    pub surface_samples: bool,
 }
 
 /// Subcommands of `mpm rom`.
@@ -270,6 +274,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 samples,
                 time_step_scale: step.dt_scale,
                 margin: step.margin,
+                interior_samples: !step.surface_samples,
                 ..RunOptions::default()
             };
             let store = out.join(format!("{}.zarr", validated.scene.name));
@@ -477,6 +482,7 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
                 samples,
                 time_step_scale: args.step.dt_scale,
                 margin: args.step.margin,
+                interior_samples: !args.step.surface_samples,
                 ..RunOptions::default()
             };
             let store = dir.join(format!("latent{latent}-samples{samples}.zarr"));

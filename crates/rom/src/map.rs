@@ -30,6 +30,29 @@ pub trait PointMap {
     fn gradients(&mut self, q: &[f64], which: &[u32], out: &mut [f64]) -> Result<(), RomError>;
     /// Jacobians ∂g/∂q, row-major `[i][k] = ∂x_i/∂q_k` (`dimension × latent` per point).
     fn jacobians(&mut self, q: &[f64], which: &[u32], out: &mut [f64]) -> Result<(), RomError>;
+    /// Velocities dx/dt = ∂g/∂q · q̇: `dimension` numbers per point. The default goes
+    /// through [`PointMap::jacobians`].
+    fn velocities(
+        &mut self,
+        q: &[f64],
+        q_rate: &[f64],
+        which: &[u32],
+        out: &mut [f64],
+    ) -> Result<(), RomError> {
+        let latent = q_rate.len();
+        let dim = out.len() / which.len().max(1);
+        let mut jacobians = vec![0.0; which.len() * dim * latent];
+        self.jacobians(q, which, &mut jacobians)?;
+        for (o, j) in out
+            .chunks_exact_mut(dim)
+            .zip(jacobians.chunks_exact(dim * latent))
+        {
+            for (i, v) in o.iter_mut().enumerate() {
+                *v = (0..latent).map(|m| j[i * latent + m] * q_rate[m]).sum();
+            }
+        }
+        Ok(())
+    }
     /// Rates of the deformation gradient, dF/dt = Σ_k ∂F/∂q_k · q̇_k, row-major. The
     /// default takes a central difference of [`PointMap::gradients`] along q̇.
     fn gradient_rates(

@@ -286,7 +286,8 @@ impl Model {
                     .ok_or_else(|| bad("a linear model without mode_grid".into()))?;
                 if grid.dimension != info.dimension
                     || grid.origin.len() != grid.dimension
-                    || grid.spacing.is_nan() || grid.spacing <= 0.0
+                    || grid.spacing.is_nan()
+                    || grid.spacing <= 0.0
                     || grid.nodes[..grid.dimension].iter().any(|&n| n < 3)
                 {
                     return Err(bad(format!("mode_grid {grid:?} is not valid")));

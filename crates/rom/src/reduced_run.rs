@@ -41,6 +41,8 @@ pub struct RunOptions {
     pub margin: f64,
     /// Gauss–Newton iterations of the projection (the linear map needs one).
     pub projection_iterations: usize,
+    /// Sample only particles at least a cell inside the body (see [`interior_particles`]).
+    pub interior_samples: bool,
 }
 
 impl Default for RunOptions {
@@ -50,6 +52,7 @@ impl Default for RunOptions {
             time_step_scale: 1.0,
             margin: 1.0,
             projection_iterations: 3,
+            interior_samples: true,
         }
     }
 }
@@ -185,7 +188,9 @@ struct Reduced<'m, const D: usize, K: Kernel> {
     quad_volume0: Vec<f64>,
     flat_f: Vec<f64>,
     flat_rate: Vec<f64>,
-    flat_jac: Vec<f64>,
+    flat_v: Vec<f64>,
+    p2g: Vec<f64>,
+    p2g_base: Vec<usize>,
     sample_x: Vec<f64>,
     sample_target: Vec<f64>,
     sample_v: Vec<f64>,
@@ -196,6 +201,7 @@ struct Reduced<'m, const D: usize, K: Kernel> {
     all: Vec<u32>,
     all_x: Vec<f64>,
     all_jac: Vec<f64>,
+    all_flat_v: Vec<f64>,
     all_flat_f: Vec<f64>,
     all_f: Vec<Matrix<D>>,
     all_stress: Vec<Matrix<D>>,
@@ -229,7 +235,13 @@ where
         let map = model.map().bind(&reference)?;
         let latent = model.info.latent;
         let dx = sim.grid.dx;
-        let samples = farthest_point_samples::<D>(&sim.particles.position, options.samples);
+        let eligible = if options.interior_samples {
+            interior_particles::<D>(&sim.particles.position, dx)
+        } else {
+            (0..n).collect()
+        };
+        let samples =
+            farthest_point_samples::<D>(&sim.particles.position, &eligible, options.samples);
         // Candidates: particles within the kernel's reach (plus the margin) of a sample in the
         // reference configuration; each step keeps those whose stencil meets a sample's.
         let reach = (K::SPAN as f64 + options.margin) * dx;
@@ -308,7 +320,9 @@ where
             quad_volume0: vec![0.0; c],
             flat_f: vec![0.0; c * D * D],
             flat_rate: vec![0.0; c * D * D],
-            flat_jac: vec![0.0; c * D * latent],
+            flat_v: vec![0.0; c * D],
+            p2g: Vec::new(),
+            p2g_base: Vec::new(),
             sample_x: vec![0.0; ns * D],
             sample_target: vec![0.0; ns * D],
             sample_v: vec![0.0; ns * D],
@@ -318,6 +332,7 @@ where
             all: (0..n as u32).collect(),
             all_x: vec![0.0; n * D],
             all_jac: vec![0.0; n * D * latent],
+            all_flat_v: vec![0.0; n * D],
             all_flat_f: vec![0.0; n * D * D],
             all_f: vec![Matrix::<D>::identity(); n],
             all_stress: vec![Matrix::<D>::zeros(); n],
@@ -421,7 +436,6 @@ where
     /// One reduced step of `dt` ending at `time_end`. Returns a diagnostic when the step
     /// cannot go on (a sample left the grid, a particle inverted).
     fn step(&mut self, dt: f64, time_end: f64) -> Result<Option<Diagnostic>, RomError> {
-        let l = self.latent;
         let grid_nodes = self.sim.grid.nodes;
         // 1. Mark the base nodes whose stencils meet a sample's stencil.
         self.map
@@ -483,9 +497,14 @@ where
         // 3. Kinematics from the map: F, velocity and affine velocity of each.
         self.map
             .gradients(&self.q, &self.quad, &mut self.flat_f[..nq * D * D])?;
-        self.map
-            .jacobians(&self.q, &self.quad, &mut self.flat_jac[..nq * D * l])?;
-        if self.settings.affine {
+        self.map.velocities(
+            &self.q,
+            &self.q_rate,
+            &self.quad,
+            &mut self.flat_v[..nq * D],
+        )?;
+        let affine = self.settings.affine;
+        if affine {
             self.map.gradient_rates(
                 &self.q,
                 &self.q_rate,
@@ -493,28 +512,34 @@ where
                 &mut self.flat_rate[..nq * D * D],
             )?;
         }
+        let (flat_f, flat_v, flat_rate) = (&self.flat_f, &self.flat_v, &self.flat_rate);
+        let volume0 = &self.sim.particles.volume0;
+        let quad = &self.quad;
+        let (min_det_f, max_speed) = self.quad_f[..nq]
+            .par_iter_mut()
+            .zip(self.quad_v[..nq].par_iter_mut())
+            .zip(self.quad_c[..nq].par_iter_mut())
+            .zip(self.quad_volume0[..nq].par_iter_mut())
+            .enumerate()
+            .map(|(k, (((f, v), c), v0))| {
+                *f = matrix_from_rows::<D>(&flat_f[k * D * D..]);
+                *v = vector_from_slice(&flat_v[k * D..]);
+                *v0 = volume0[quad[k] as usize];
+                if affine {
+                    let rate = matrix_from_rows::<D>(&flat_rate[k * D * D..]);
+                    *c = inverse(f).map_or_else(Matrix::<D>::zeros, |fi| rate * fi);
+                }
+                (determinant(f), v.norm())
+            })
+            .reduce(
+                || (f64::INFINITY, 0.0f64),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            );
         let mut stats = StepStats {
-            min_det_f: f64::INFINITY,
+            min_det_f,
+            max_speed,
             ..StepStats::default()
         };
-        for k in 0..nq {
-            let f = matrix_from_rows::<D>(&self.flat_f[k * D * D..]);
-            let j = &self.flat_jac[k * D * l..(k + 1) * D * l];
-            let mut v = Vector::<D>::zeros();
-            for d in 0..D {
-                v[d] = (0..l).map(|m| j[d * l + m] * self.q_rate[m]).sum();
-            }
-            let det = determinant(&f);
-            stats.min_det_f = stats.min_det_f.min(det);
-            stats.max_speed = stats.max_speed.max(v.norm());
-            self.quad_f[k] = f;
-            self.quad_v[k] = v;
-            self.quad_volume0[k] = self.sim.particles.volume0[self.quad[k] as usize];
-            if self.settings.affine {
-                let rate = matrix_from_rows::<D>(&self.flat_rate[k * D * D..]);
-                self.quad_c[k] = inverse(&f).map_or_else(Matrix::<D>::zeros, |fi| rate * fi);
-            }
-        }
         if stats.min_det_f.is_nan() || stats.min_det_f <= 0.0 {
             return Ok(Some(diagnostic(
                 0,
@@ -541,40 +566,77 @@ where
             ));
         }
         stats.max_wave_speed = batch_stats.max_wave_speed;
-        // 5. P2G over the quadrature particles.
+        // 5. P2G over the quadrature particles: each particle's stencil contributions are
+        // computed in parallel into a buffer, then added to the grid in one pass.
+        let span_z = if D == 3 { K::SPAN } else { 1 };
+        let per = K::SPAN * K::SPAN * span_z * (1 + D);
+        if self.p2g.len() < nq * per {
+            self.p2g.resize(nq * per, 0.0);
+            self.p2g_base.resize(nq, 0);
+        }
         let grid = &mut self.sim.grid;
-        grid.mass.fill(0.0);
-        grid.momentum.fill(Vector::<D>::zeros());
         let (dx, inv_dx, stride) = (grid.dx, grid.inv_dx, grid.stride);
         let gravity = self.settings.gravity;
+        let (mls, inertia) = (self.settings.mls, self.settings.inertia);
+        let particles = &self.sim.particles;
+        let (quad_x, quad_v, quad_c) = (&self.quad_x, &self.quad_v, &self.quad_c);
+        let (quad_f, quad_stress, quad_volume0) =
+            (&self.quad_f, &self.quad_stress, &self.quad_volume0);
+        {
+            let grid = &*grid;
+            self.p2g[..nq * per]
+                .par_chunks_mut(per)
+                .zip(self.p2g_base[..nq].par_iter_mut())
+                .enumerate()
+                .for_each(|(k, (buffer, base))| {
+                    let p = quad[k] as usize;
+                    let half = if K::USES_PARTICLE_SIZE {
+                        particles.half_size[p]
+                    } else {
+                        0.0
+                    };
+                    let stencil = Stencil::<D>::new::<K>(grid, &quad_x[k], half);
+                    *base = stencil.base_index;
+                    let m = particles.mass[p];
+                    let mv = (quad_v[k] + gravity * dt) * m;
+                    let volume = quad_volume0[k] * determinant(&quad_f[k]);
+                    let mut affine_momentum = Matrix::<D>::zeros();
+                    if affine {
+                        affine_momentum += quad_c[k] * (m * dx);
+                    }
+                    let mut force = Matrix::<D>::zeros();
+                    if mls {
+                        affine_momentum -=
+                            quad_stress[k] * (dt * volume / (inertia * dx * dx) * dx);
+                    } else {
+                        force = quad_stress[k] * (-volume * inv_dx * dt);
+                    }
+                    let mut t = 0;
+                    stencil.for_each::<K>(&stride, |_, w, grad, dpos| {
+                        buffer[t] = w * m;
+                        let add = (mv + affine_momentum * dpos) * w + force * grad;
+                        buffer[t + 1..t + 1 + D].copy_from_slice(add.as_slice());
+                        t += 1 + D;
+                    });
+                });
+        }
+        grid.mass.fill(0.0);
+        grid.momentum.fill(Vector::<D>::zeros());
         for k in 0..nq {
-            let p = self.quad[k] as usize;
-            let x = self.quad_x[k];
-            let half = if K::USES_PARTICLE_SIZE {
-                self.sim.particles.half_size[p]
-            } else {
-                0.0
-            };
-            let stencil = Stencil::<D>::new::<K>(grid, &x, half);
-            let m = self.sim.particles.mass[p];
-            let mv = (self.quad_v[k] + gravity * dt) * m;
-            let volume = self.quad_volume0[k] * determinant(&self.quad_f[k]);
-            let mut affine = Matrix::<D>::zeros();
-            if self.settings.affine {
-                affine += self.quad_c[k] * (m * dx);
+            let base = self.p2g_base[k];
+            let buffer = &self.p2g[k * per..(k + 1) * per];
+            let mut t = 0;
+            for a in 0..K::SPAN {
+                for b in 0..K::SPAN {
+                    for c in 0..span_z {
+                        let i = base + a * stride[0] + b * stride[1] + c;
+                        grid.mass[i] += buffer[t];
+                        grid.momentum[i] +=
+                            Vector::<D>::from_column_slice(&buffer[t + 1..t + 1 + D]);
+                        t += 1 + D;
+                    }
+                }
             }
-            let mut force = Matrix::<D>::zeros();
-            if self.settings.mls {
-                affine -=
-                    self.quad_stress[k] * (dt * volume / (self.settings.inertia * dx * dx) * dx);
-            } else {
-                force = self.quad_stress[k] * (-volume * inv_dx * dt);
-            }
-            let (mass, momentum) = (&mut grid.mass, &mut grid.momentum);
-            stencil.for_each::<K>(&stride, |i, w, grad, dpos| {
-                mass[i] += w * m;
-                momentum[i] += (mv + affine * dpos) * w + force * grad;
-            });
         }
         // 6. The core's grid update: forces, damping, walls and obstacles.
         update_grid(
@@ -616,7 +678,6 @@ where
     /// Evaluates the map at every particle and fills the output buffers; returns the
     /// frame's diagnostics.
     fn evaluate_frame(&mut self, dt: f64, steps: u64) -> Result<[f64; 10], RomError> {
-        let l = self.latent;
         let n = self.all.len();
         self.map.positions(&self.q, &self.all, &mut self.all_x)?;
         self.map.jacobians(&self.q, &self.all, &mut self.all_jac)?;
@@ -627,11 +688,7 @@ where
         let mut momentum = Vector::<D>::zeros();
         let mut min_det = f64::INFINITY;
         for p in 0..n {
-            let j = &self.all_jac[p * D * l..(p + 1) * D * l];
-            let mut v = Vector::<D>::zeros();
-            for d in 0..D {
-                v[d] = (0..l).map(|m| j[d * l + m] * self.q_rate[m]).sum();
-            }
+            let v: Vector<D> = vector_from_slice(&self.all_flat_v[p * D..]);
             let x: Vector<D> = vector_from_slice(&self.all_x[p * D..]);
             let m = particles.mass[p];
             kinetic += 0.5 * m * v.norm_squared();
@@ -960,32 +1017,83 @@ where
         .reduce(BatchStats::default, BatchStats::merge)
 }
 
-/// `count` particles spread over the body by farthest-point sampling in the reference
-/// configuration, starting from the particle nearest the centroid; sorted by index.
-pub fn farthest_point_samples<const D: usize>(positions: &[Vector<D>], count: usize) -> Vec<u32> {
-    let n = positions.len();
+/// Particles at least a cell inside the body: their 3^D neighbouring cells (of size `dx`,
+/// in the reference configuration) hold at least 90% of the most any particle sees. Their
+/// grid nodes are full, so the accelerations sampled there are not those of the sparsely
+/// filled surface nodes; the outermost layer is left out. Every particle when none is.
+pub fn interior_particles<const D: usize>(positions: &[Vector<D>], dx: f64) -> Vec<usize> {
+    use std::collections::HashMap;
+    let cell = |x: &Vector<D>| -> [i64; 3] {
+        let mut c = [0i64; 3];
+        for d in 0..D {
+            c[d] = (x[d] / dx).floor() as i64;
+        }
+        c
+    };
+    let mut counts: HashMap<[i64; 3], usize> = HashMap::new();
+    for x in positions {
+        *counts.entry(cell(x)).or_default() += 1;
+    }
+    let reach = |c: [i64; 3]| -> usize {
+        let mut total = 0;
+        let z = if D == 3 { -1..=1 } else { 0..=0 };
+        for i in -1..=1 {
+            for j in -1..=1 {
+                for k in z.clone() {
+                    total += counts
+                        .get(&[c[0] + i, c[1] + j, c[2] + k])
+                        .copied()
+                        .unwrap_or(0);
+                }
+            }
+        }
+        total
+    };
+    let seen: Vec<usize> = positions.iter().map(|x| reach(cell(x))).collect();
+    let most = seen.iter().copied().max().unwrap_or(0);
+    let inside: Vec<usize> = (0..positions.len())
+        .filter(|&p| seen[p] * 10 >= most * 9)
+        .collect();
+    if inside.is_empty() {
+        (0..positions.len()).collect()
+    } else {
+        inside
+    }
+}
+
+/// `count` particles spread over `eligible` particles by farthest-point sampling in the
+/// reference configuration, starting from the one nearest the centroid; sorted by index.
+pub fn farthest_point_samples<const D: usize>(
+    positions: &[Vector<D>],
+    eligible: &[usize],
+    count: usize,
+) -> Vec<u32> {
+    let n = eligible.len();
     if n == 0 || count == 0 {
         return Vec::new();
     }
-    let centroid = positions.iter().fold(Vector::<D>::zeros(), |a, x| a + x) / n as f64;
+    let centroid = eligible
+        .iter()
+        .fold(Vector::<D>::zeros(), |a, &p| a + positions[p])
+        / n as f64;
     let first = (0..n)
         .min_by(|&a, &b| {
-            (positions[a] - centroid)
+            (positions[eligible[a]] - centroid)
                 .norm_squared()
-                .total_cmp(&(positions[b] - centroid).norm_squared())
+                .total_cmp(&(positions[eligible[b]] - centroid).norm_squared())
         })
         .unwrap_or(0);
     let mut distance = vec![f64::INFINITY; n];
-    let mut chosen = vec![first as u32];
+    let mut chosen = vec![eligible[first] as u32];
     let mut last = first;
     while chosen.len() < count.min(n) {
-        let from = positions[last];
+        let from = positions[eligible[last]];
         let next = distance
             .par_iter_mut()
-            .zip(positions.par_iter())
+            .zip(eligible.par_iter())
             .enumerate()
-            .map(|(i, (d, x))| {
-                *d = d.min((x - from).norm_squared());
+            .map(|(i, (d, &p))| {
+                *d = d.min((positions[p] - from).norm_squared());
                 (i, *d)
             })
             .reduce(
@@ -999,9 +1107,46 @@ pub fn farthest_point_samples<const D: usize>(positions: &[Vector<D>], count: us
                 },
             );
         last = next.0;
-        chosen.push(last as u32);
+        chosen.push(eligible[last] as u32);
     }
     chosen.sort_unstable();
     chosen.dedup();
     chosen
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regularised_solve_matches_a_known_solution() {
+        let mut a = vec![4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
+        let x = [1.0, -2.0, 0.5];
+        let mut b: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| a[i * 3 + j] * x[j]).sum())
+            .collect();
+        solve_regularised(&mut a, &mut b, 3);
+        for (got, want) in b.iter().zip(x) {
+            assert!((got - want).abs() < 1e-10, "{b:?}");
+        }
+    }
+
+    #[test]
+    fn samples_spread_over_the_interior() {
+        // A 10 x 10 lattice of spacing 0.5 in cells of 1: the outermost ring is not interior.
+        let positions: Vec<Vector<2>> = (0..100)
+            .map(|k| Vector::<2>::new(0.25 + 0.5 * (k / 10) as f64, 0.25 + 0.5 * (k % 10) as f64))
+            .collect();
+        let inside = interior_particles::<2>(&positions, 1.0);
+        assert!(inside.len() < 100 && inside.len() >= 16, "{}", inside.len());
+        let samples = farthest_point_samples::<2>(&positions, &inside, 4);
+        assert_eq!(samples.len(), 4);
+        // Four samples over a square spread to its four quadrants.
+        let mut quadrants = [false; 4];
+        for s in &samples {
+            let x = positions[*s as usize];
+            quadrants[(x[0] > 2.5) as usize * 2 + (x[1] > 2.5) as usize] = true;
+        }
+        assert!(quadrants.iter().all(|q| *q), "{samples:?}");
+    }
 }
