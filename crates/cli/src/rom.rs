@@ -86,6 +86,18 @@ pub struct StepArgs {
     pub surface_samples: bool,
 }
 
+impl StepArgs {
+    fn options(&self, samples: usize) -> RunOptions {
+        RunOptions {
+            samples,
+            time_step_scale: self.dt_scale,
+            margin: self.margin,
+            interior_samples: !self.surface_samples,
+            ..RunOptions::default()
+        }
+    }
+}
+
 /// Subcommands of `mpm rom`.
 #[derive(Debug, Subcommand)]
 pub enum RomCommand {
@@ -153,35 +165,7 @@ pub enum RomCommand {
     /// Train one model per latent size, run the scene with each at each sample count, and
     /// tabulate and plot position error against wall time per simulated second, with the
     /// full-order run's time as a line.
-    Study {
-        /// Scene file at the held-out parameters.
-        scene: PathBuf,
-        /// Full-order run of the same scene (the reference and the time to beat).
-        #[arg(long)]
-        full: PathBuf,
-        /// Training stores or folders of them (not including `--full`).
-        #[arg(long, required = true, num_args = 1..)]
-        runs: Vec<PathBuf>,
-        /// Latent sizes, comma-separated.
-        #[arg(long, value_delimiter = ',', default_value = "4,8")]
-        latent: Vec<usize>,
-        /// Sample counts, comma-separated.
-        #[arg(long, value_delimiter = ',', default_value = "8,16,32,64")]
-        samples: Vec<usize>,
-        /// Linear or neural maps.
-        #[arg(long, value_enum, default_value_t = KindArg::Linear)]
-        kind: KindArg,
-        /// Change a scene value first (repeatable).
-        #[arg(long = "set", value_name = "PATH=VALUE")]
-        set: Vec<String>,
-        /// Output folder (default results/<scene>-rom-study).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[command(flatten)]
-        step: StepArgs,
-        #[command(flatten)]
-        neural: NeuralArgs,
-    },
+    Study(StudyArgs),
 }
 
 /// Exit status of a reduced-model failure: bad input for models, scenes and options.
@@ -270,13 +254,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 Ok(m) => m,
                 Err(e) => return report(e),
             };
-            let options = RunOptions {
-                samples,
-                time_step_scale: step.dt_scale,
-                margin: step.margin,
-                interior_samples: !step.surface_samples,
-                ..RunOptions::default()
-            };
+            let options = step.options(samples);
             let store = out.join(format!("{}.zarr", validated.scene.name));
             let metrics = match run_one(&validated, &model, &options, &store, quiet || json) {
                 Ok(m) => m,
@@ -325,32 +303,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
             }
             Ok(ExitStatus::Success)
         }
-        RomCommand::Study {
-            scene,
-            full,
-            runs,
-            latent,
-            samples,
-            kind,
-            set,
-            out,
-            step,
-            neural,
-        } => study(
-            &StudyArgs {
-                scene,
-                full,
-                runs,
-                latent,
-                samples,
-                kind,
-                set,
-                out,
-                step,
-                neural,
-            },
-            registry,
-        ),
+        RomCommand::Study(args) => study(&args, registry),
     }
 }
 
@@ -400,16 +353,35 @@ fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) {
     println!("wrote {}", store.display());
 }
 
-struct StudyArgs {
+/// Settings of `mpm rom study`.
+#[derive(Debug, clap::Args)]
+pub struct StudyArgs {
+    /// Scene file at the held-out parameters.
     scene: PathBuf,
+    /// Full-order run of the same scene (the reference and the time to beat).
+    #[arg(long)]
     full: PathBuf,
+    /// Training stores or folders of them (not including `--full`).
+    #[arg(long, required = true, num_args = 1..)]
     runs: Vec<PathBuf>,
+    /// Latent sizes, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "4,8")]
     latent: Vec<usize>,
+    /// Sample counts, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "8,16,32,64")]
     samples: Vec<usize>,
+    /// Linear or neural maps.
+    #[arg(long, value_enum, default_value_t = KindArg::Linear)]
     kind: KindArg,
+    /// Change a scene value first (repeatable).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
     set: Vec<String>,
+    /// Output folder (default results/<scene>-rom-study).
+    #[arg(long)]
     out: Option<PathBuf>,
+    #[command(flatten)]
     step: StepArgs,
+    #[command(flatten)]
     neural: NeuralArgs,
 }
 
@@ -478,13 +450,7 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
             return report(e);
         }
         for &samples in &args.samples {
-            let options = RunOptions {
-                samples,
-                time_step_scale: args.step.dt_scale,
-                margin: args.step.margin,
-                interior_samples: !args.step.surface_samples,
-                ..RunOptions::default()
-            };
+            let options = args.step.options(samples);
             let store = dir.join(format!("latent{latent}-samples{samples}.zarr"));
             let row = match run_one(&validated, &model, &options, &store, true) {
                 Ok(m) => {

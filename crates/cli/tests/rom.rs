@@ -371,3 +371,47 @@ fn neural_model_trains_and_runs() {
     let error = v["error"]["relative"].as_f64().unwrap();
     assert!(error < 0.1, "neural reduced run: position error {error}");
 }
+
+#[test]
+fn study_tabulates_and_plots_error_against_wall_time() {
+    let f = fixture();
+    let d = f.dir.path();
+    let s = f.scene.to_str().unwrap();
+    let t = ok(
+        &[
+            "rom",
+            "study",
+            s,
+            "--full",
+            "full/rom-tower-2d.zarr",
+            "--runs",
+            "train",
+            "--latent",
+            "2,4",
+            "--samples",
+            "8,16",
+            "--out",
+            "study",
+            "--surface-samples",
+        ],
+        d,
+    );
+    assert!(t.contains("full-order run:"), "{t}");
+    let csv = std::fs::read_to_string(d.join("study/rom-study.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 4, "{csv}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("study/rom-study.json")).unwrap())
+            .unwrap();
+    assert!(
+        json["full_order_wall_per_simulated_second"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    for row in json["rows"].as_array().unwrap() {
+        assert_eq!(row["outcome"], "finished", "{row}");
+        assert!(row["error"].as_f64().unwrap() < 0.05, "{row}");
+    }
+    let png = std::fs::read(d.join("study/rom-study.png")).unwrap();
+    assert_eq!(&png[..4], b"\x89PNG");
+}

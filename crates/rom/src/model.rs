@@ -49,6 +49,8 @@ pub struct TrainingInfo {
     pub kernel: serde_json::Value,
     /// Cell size of the training scene, metres.
     pub cell_size: f64,
+    /// Lower and upper corner of the training particles' reference box, metres.
+    pub reference_box: [Vec<f64>; 2],
 }
 
 /// The description stored in the model file's metadata.
@@ -224,6 +226,7 @@ impl Model {
                     .cloned()
                     .unwrap_or(serde_json::Value::Null),
                 cell_size,
+                reference_box: bounding_box(&snaps.reference, dim),
             },
             mode_grid,
             network,
@@ -361,6 +364,21 @@ impl Model {
                 ),
             ));
         }
+        let [lo, hi] = &self.info.training.reference_box;
+        for body in &scene.bodies {
+            let dim = self.info.dimension;
+            for (p, x) in body.positions.chunks_exact(dim).enumerate() {
+                if (0..dim).any(|d| x[d] < lo[d] - 0.5 * h || x[d] > hi[d] + 0.5 * h) {
+                    return Err(mismatch(
+                        &format!("bodies[{}]", body.body),
+                        format!(
+                            "particle {p} at {x:?} lies outside the region the model was trained \
+                             on ({lo:?} to {hi:?}, half a cell of slack)"
+                        ),
+                    ));
+                }
+            }
+        }
         if !s.physics.is_empty() {
             return Err(mismatch(
                 "physics",
@@ -409,6 +427,19 @@ impl Model {
         }
         Ok(())
     }
+}
+
+/// Lower and upper corners of `points` (`dim` numbers each).
+fn bounding_box(points: &[f64], dim: usize) -> [Vec<f64>; 2] {
+    let mut lo = vec![f64::INFINITY; dim];
+    let mut hi = vec![f64::NEG_INFINITY; dim];
+    for x in points.chunks_exact(dim) {
+        for d in 0..dim {
+            lo[d] = lo[d].min(x[d]);
+            hi[d] = hi[d].max(x[d]);
+        }
+    }
+    [lo, hi]
 }
 
 /// RMS misfit of `map` at the training snapshots with codes `codes` (`[snapshot][latent]`),
