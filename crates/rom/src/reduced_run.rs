@@ -350,12 +350,10 @@ where
     /// Initial q (the model's undeformed code, refined onto the scene's positions at the
     /// samples) and q̇ (least squares of the initial velocities of every particle).
     fn initialise(&mut self) -> Result<(), RomError> {
-        let ns = self.samples.len();
         for (k, &p) in self.samples.iter().enumerate() {
             let x = self.sim.particles.position[p as usize];
             self.sample_target[k * D..(k + 1) * D].copy_from_slice(x.as_slice());
         }
-        let _ = ns;
         self.project_positions()?;
         let n = self.all.len();
         let l = self.latent;
@@ -680,7 +678,8 @@ where
     fn evaluate_frame(&mut self, dt: f64, steps: u64) -> Result<[f64; 10], RomError> {
         let n = self.all.len();
         self.map.positions(&self.q, &self.all, &mut self.all_x)?;
-        self.map.jacobians(&self.q, &self.all, &mut self.all_jac)?;
+        self.map
+            .velocities(&self.q, &self.q_rate, &self.all, &mut self.all_flat_v)?;
         self.map
             .gradients(&self.q, &self.all, &mut self.all_flat_f)?;
         let particles = &self.sim.particles;
