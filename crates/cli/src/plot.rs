@@ -18,6 +18,46 @@ pub(crate) fn register_font() {
     });
 }
 
+/// A chart with logarithmic axes on both sides.
+pub(crate) type LogLogChart<'a, DB> =
+    ChartContext<'a, DB, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>;
+
+/// The log-log chart of error against time that both study plots draw on: axes spanning
+/// `x` and `y` with some room, labelled `x_desc` and `y_desc`, the mesh drawn.
+pub(crate) fn log_log_chart<'a, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, Shift>,
+    title: &str,
+    x: (f64, f64),
+    y: (f64, f64),
+    x_desc: &str,
+    y_desc: &str,
+) -> anyhow::Result<LogLogChart<'a, DB>>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{e}");
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 24))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(
+            (x.0 / 1.5..x.1 * 1.5).log_scale(),
+            (y.0 / 2.0..y.1 * 2.0).log_scale(),
+        )
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&|x| format!("{x:.2e}"))
+        .y_label_formatter(&|y| format!("{y:.1e}"))
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    Ok(chart)
+}
+
 /// Writes `study.png` and `study.svg` into `dir`.
 pub fn draw(dir: &Path, title: &str, rows: &[StudyRow]) -> anyhow::Result<()> {
     register_font();
@@ -70,25 +110,14 @@ where
         ymin = ymin.min(*y);
         ymax = ymax.max(*y);
     }
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 24))
-        .margin(20)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d(
-            (xmin / 1.5..xmax * 1.5).log_scale(),
-            (ymin / 2.0..ymax * 2.0).log_scale(),
-        )
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc("wall time, s")
-        .y_desc("error against the reference")
-        .x_label_formatter(&|x| format!("{x:.2e}"))
-        .y_label_formatter(&|y| format!("{y:.1e}"))
-        .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+    let mut chart = log_log_chart(
+        &root,
+        title,
+        (xmin, xmax),
+        (ymin, ymax),
+        "wall time, s",
+        "error against the reference",
+    )?;
     for (i, (name, group)) in series(rows).iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
         let mut pts: Vec<(f64, f64)> = group

@@ -580,25 +580,14 @@ pub fn draw_study(png: &Path, title: &str, rows: &[RomRow], full_rate: f64) -> a
         ymin = 1e-3;
         ymax = 1e-1;
     }
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(20)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d(
-            (xmin / 1.5..xmax * 1.5).log_scale(),
-            (ymin / 2.0..ymax * 2.0).log_scale(),
-        )
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc("wall time per simulated second, s")
-        .y_desc("relative L2 position error vs full order")
-        .x_label_formatter(&|x| format!("{x:.2e}"))
-        .y_label_formatter(&|y| format!("{y:.1e}"))
-        .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+    let mut chart = crate::plot::log_log_chart(
+        &root,
+        title,
+        (xmin, xmax),
+        (ymin, ymax),
+        "wall time per simulated second, s",
+        "relative L2 position error vs full order",
+    )?;
     let mut latents: Vec<usize> = rows.iter().map(|r| r.latent).collect();
     latents.dedup();
     for (i, latent) in latents.iter().enumerate() {

@@ -200,7 +200,6 @@ struct Reduced<'m, const D: usize, K: Kernel> {
     // Frame scratch over every particle.
     all: Vec<u32>,
     all_x: Vec<f64>,
-    all_jac: Vec<f64>,
     all_flat_v: Vec<f64>,
     all_flat_f: Vec<f64>,
     all_f: Vec<Matrix<D>>,
@@ -230,7 +229,7 @@ where
             .particles
             .position
             .iter()
-            .flat_map(|x| x.iter().copied().collect::<Vec<_>>())
+            .flat_map(|x| x.iter().copied())
             .collect();
         let map = model.map().bind(&reference)?;
         let latent = model.info.latent;
@@ -331,7 +330,6 @@ where
             rhs: vec![0.0; latent],
             all: (0..n as u32).collect(),
             all_x: vec![0.0; n * D],
-            all_jac: vec![0.0; n * D * latent],
             all_flat_v: vec![0.0; n * D],
             all_flat_f: vec![0.0; n * D * D],
             all_f: vec![Matrix::<D>::identity(); n],
@@ -357,11 +355,13 @@ where
         self.project_positions()?;
         let n = self.all.len();
         let l = self.latent;
-        self.map.jacobians(&self.q, &self.all, &mut self.all_jac)?;
+        // Once per run: the Jacobian of every particle, to fit q̇ to the initial velocities.
+        let mut jacobians = vec![0.0; n * D * l];
+        self.map.jacobians(&self.q, &self.all, &mut jacobians)?;
         self.normal.fill(0.0);
         self.rhs.fill(0.0);
         for p in 0..n {
-            let j = &self.all_jac[p * D * l..(p + 1) * D * l];
+            let j = &jacobians[p * D * l..(p + 1) * D * l];
             let v = self.sim.particles.velocity[p];
             accumulate_normal(j, v.as_slice(), D, l, &mut self.normal, &mut self.rhs);
         }
