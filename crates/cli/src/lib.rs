@@ -39,7 +39,8 @@ pub fn default_registry() -> Registry {
     registry
 }
 
-/// The JSON Schema of a scene file, with the material sections of every registered plugin.
+/// The JSON Schema of a scene file, with the material, physics and reference sections of
+/// every registered plugin (and the core's references).
 pub fn scene_schema(registry: &Registry) -> serde_json::Value {
     let mut schema = schemars::schema_for!(mpm_core::scene::Scene).to_value();
     let materials: Vec<serde_json::Value> = registry
@@ -59,6 +60,17 @@ pub fn scene_schema(registry: &Registry) -> serde_json::Value {
     if let Some(slot) = schema.pointer_mut("/properties/physics") {
         slot["properties"] = serde_json::Value::Object(physics);
         slot["additionalProperties"] = serde_json::json!(false);
+    }
+    let references: Vec<serde_json::Value> = registry
+        .reference_types()
+        .map(|t| registry.reference(t).expect("listed").schema())
+        .collect();
+    if let Some(slot) = schema.pointer_mut("/properties/reference") {
+        let description = slot.get("description").cloned();
+        *slot = serde_json::json!({ "oneOf": references });
+        if let Some(d) = description {
+            slot["description"] = d;
+        }
     }
     schema
 }

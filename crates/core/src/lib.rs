@@ -5,7 +5,6 @@
 //! `docs/ARCHITECTURE.md` for the step pipeline.
 
 pub mod boundary;
-pub mod closed_forms;
 pub mod conjugate_gradient;
 pub mod grid;
 pub mod kernels;
@@ -17,6 +16,7 @@ pub mod physics;
 pub mod plugin;
 pub mod reference;
 pub mod scene;
+pub mod section;
 pub mod solver;
 
 /// Version of this crate, stored with every result.

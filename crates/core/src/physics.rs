@@ -399,7 +399,7 @@ where
     }
 
     fn schema(&self) -> serde_json::Value {
-        crate::plugin::section_schema::<P>()
+        crate::section::section_schema::<P>()
     }
 
     fn build(

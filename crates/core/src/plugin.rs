@@ -1,11 +1,15 @@
-//! Plugins: crates that add materials (and later other physics) to the solver.
+//! Plugins: crates that add materials, physics operators and reference solutions to the
+//! solver.
 //!
 //! A plugin is a value implementing [`Plugin`]; the `mpm` binary registers each one in a
-//! [`Registry`] with one line. The core knows no plugin by name.
+//! [`Registry`] with one line. The core knows no plugin by name; its own mechanics
+//! references are in every registry from the start.
 
 use crate::material::Material;
 use crate::physics::PhysicsFactory;
+use crate::reference::ReferenceFactory;
 use crate::scene::Issue;
+use crate::section::{typed_params, typed_section_schema};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -20,6 +24,11 @@ pub trait Plugin: Send + Sync {
     fn materials(&self) -> Vec<Box<dyn MaterialFactory>>;
     /// The physics operators this plugin provides (scene sections `physics.<name>`).
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
+        Vec::new()
+    }
+    /// The reference solutions this plugin provides (scene section `reference`, by `type`):
+    /// the closed forms its physics is verified against.
+    fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
         Vec::new()
     }
 }
@@ -47,6 +56,9 @@ pub enum RegistryError {
     /// Two plugins claim the same physics section.
     #[error("physics `{0}` is provided by two plugins (`{1}` and `{2}`)")]
     DuplicatePhysics(String, String, String),
+    /// Two plugins (or a plugin and the core) claim the same reference type.
+    #[error("reference type `{0}` is provided twice (by `{1}` and `{2}`)")]
+    DuplicateReference(String, String, String),
     /// Two plugins with one name.
     #[error("plugin `{0}` is registered twice")]
     DuplicatePlugin(String),
@@ -58,17 +70,37 @@ pub enum RegistryError {
 pub type ParticleStoreReader =
     Box<dyn Fn(&Path, usize, f64) -> Result<(Vec<f64>, Vec<f64>), String> + Send + Sync>;
 
-/// All registered plugins and the material types they provide.
-#[derive(Default)]
+/// Owner name of the references the core provides itself.
+pub const CORE: &str = "core";
+
+/// All registered plugins and what they provide, with the core's own references.
 pub struct Registry {
     plugins: Vec<Box<dyn Plugin>>,
     materials: BTreeMap<&'static str, (usize, Box<dyn MaterialFactory>)>,
     physics: Vec<(usize, Box<dyn PhysicsFactory>)>,
+    /// Reference types with the name of the plugin (or [`CORE`]) that provides them.
+    references: BTreeMap<&'static str, (&'static str, Box<dyn ReferenceFactory>)>,
     store_reader: Option<ParticleStoreReader>,
 }
 
+impl Default for Registry {
+    fn default() -> Self {
+        let references = crate::reference::core_references()
+            .into_iter()
+            .map(|f| (f.type_name(), (CORE, f)))
+            .collect();
+        Self {
+            plugins: Vec::new(),
+            materials: BTreeMap::new(),
+            physics: Vec::new(),
+            references,
+            store_reader: None,
+        }
+    }
+}
+
 impl Registry {
-    /// An empty registry.
+    /// A registry with no plugin (the core's mechanics references only).
     pub fn new() -> Self {
         Self::default()
     }
@@ -100,6 +132,17 @@ impl Registry {
                 ));
             }
             self.physics.push((index, factory));
+        }
+        for factory in plugin.references() {
+            let name = factory.type_name();
+            if let Some((other, _)) = self.references.get(name) {
+                return Err(RegistryError::DuplicateReference(
+                    name.into(),
+                    (*other).into(),
+                    plugin.name().into(),
+                ));
+            }
+            self.references.insert(name, (plugin.name(), factory));
         }
         self.plugins.push(plugin);
         Ok(())
@@ -139,6 +182,25 @@ impl Registry {
             .iter()
             .filter(|(i, _)| *i == index)
             .map(|(_, f)| (f.name(), f.schema()))
+            .collect()
+    }
+
+    /// The factory for a reference type.
+    pub fn reference(&self, type_name: &str) -> Option<&dyn ReferenceFactory> {
+        self.references.get(type_name).map(|(_, f)| f.as_ref())
+    }
+
+    /// Registered reference types, sorted.
+    pub fn reference_types(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.references.keys().copied()
+    }
+
+    /// Reference types of one plugin (or of [`CORE`]) with their schemas.
+    pub fn references_of(&self, owner: &str) -> Vec<(&'static str, serde_json::Value)> {
+        self.references
+            .iter()
+            .filter(|(_, (o, _))| *o == owner)
+            .map(|(name, (_, f))| (*name, f.schema()))
             .collect()
     }
 
@@ -204,21 +266,7 @@ where
     }
 
     fn schema(&self) -> serde_json::Value {
-        let mut schema = section_schema::<P>();
-        if let Some(obj) = schema.as_object_mut() {
-            if let Some(props) = obj.get_mut("properties").and_then(|p| p.as_object_mut()) {
-                props.insert(
-                    "type".into(),
-                    serde_json::json!({ "const": self.type_name, "description": "Material type." }),
-                );
-            }
-            if let Some(req) = obj.get_mut("required").and_then(|r| r.as_array_mut()) {
-                req.insert(0, serde_json::json!("type"));
-            } else {
-                obj.insert("required".into(), serde_json::json!(["type"]));
-            }
-        }
-        schema
+        typed_section_schema::<P>(self.type_name, "Material type.")
     }
 
     fn build(
@@ -226,25 +274,8 @@ where
         section: &serde_json::Value,
         path: &str,
     ) -> Result<Arc<dyn Material>, Vec<Issue>> {
-        let mut params = section.clone();
-        if let Some(obj) = params.as_object_mut() {
-            obj.remove("type");
-        }
-        let typed: P = crate::scene::deserialize_at(&params, path).map_err(|e| vec![e])?;
-        (self.build)(typed, path)
+        (self.build)(typed_params(section, path)?, path)
     }
-}
-
-/// The JSON Schema of a scene section's parameter struct, without the `$schema` key (it
-/// is embedded in the scene schema).
-pub fn section_schema<P: schemars::JsonSchema>() -> serde_json::Value {
-    let mut schema = schemars::SchemaGenerator::default()
-        .into_root_schema_for::<P>()
-        .to_value();
-    if let Some(obj) = schema.as_object_mut() {
-        obj.remove("$schema");
-    }
-    schema
 }
 
 /// Checks the usual elastic constants and returns every problem with its JSON path.

@@ -3,11 +3,15 @@
 //!
 //! Everything a plugin needs is here: a parameter struct (serde + schemars gives JSON-path
 //! errors and a schema), checks that name the offending field, a [`ConstitutiveLaw`] that
-//! updates a whole batch of particles per call, and a [`Plugin`] value to register.
+//! updates a whole batch of particles per call, a reference solution that verifies it
+//! (`reference.rs`), and a [`Plugin`] value to register.
+
+mod reference;
 
 use mpm_core::material::{BatchStats, ConstitutiveLaw, Material, StressBatch, lame_parameters};
 use mpm_core::math::{Matrix, trace};
 use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory, check_elastic_constants};
+use mpm_core::reference::ReferenceFactory;
 use mpm_core::scene::Issue;
 use schemars::JsonSchema;
 use serde::Deserialize;
@@ -104,5 +108,10 @@ impl Plugin for TemplatePlugin {
 
     fn materials(&self) -> Vec<Box<dyn MaterialFactory>> {
         vec![Box::new(TypedMaterialFactory::new("kelvin_voigt", build))]
+    }
+
+    // The reference that verifies the material, registered like the material itself.
+    fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
+        vec![reference::factory()]
     }
 }

@@ -36,4 +36,18 @@ fn kelvin_voigt_bar_decays_at_the_analytic_rate() {
     // Tolerance: the discretisation (20 cells along the bar) and the grid transfer's own
     // damping; measured 0.4% when this test was written.
     assert!(relative < 0.05, "decay rate {measured} vs {beta}");
+
+    // The plugin's own reference (`kelvin_voigt_decay`, src/reference.rs) measured the same
+    // rate from the particles' kinetic energy and reported it in the run's metrics.
+    let metrics = &store.attributes()["metrics"];
+    let error = metrics["error"].as_f64().expect("the reference's error");
+    let reference = metrics["reference_value"].as_f64().unwrap();
+    assert!(
+        (reference - beta).abs() < 1e-12 * beta,
+        "{reference} vs {beta}"
+    );
+    println!("reference: decay-rate error {error:.3e}");
+    // Same tolerance as above: the kinetic energy at the last frame is within the damped
+    // period's shift of its peak.
+    assert!(error < 0.05, "decay-rate error {error}");
 }

@@ -7,6 +7,7 @@ mod damage;
 mod equation_of_state;
 mod flow_stress;
 mod johnson_cook;
+mod taylor_bar;
 
 pub use damage::{Damage, FailureMode};
 pub use equation_of_state::EquationOfState;
@@ -15,6 +16,7 @@ pub use johnson_cook::JohnsonCook;
 
 use mpm_core::material::Material;
 use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory, check_elastic_constants};
+use mpm_core::reference::ReferenceFactory;
 use mpm_core::scene::Issue;
 use schemars::JsonSchema;
 use serde::Deserialize;
@@ -182,6 +184,10 @@ impl Plugin for JohnsonCookPlugin {
 
     fn materials(&self) -> Vec<Box<dyn MaterialFactory>> {
         vec![Box::new(TypedMaterialFactory::new("johnson_cook", build))]
+    }
+
+    fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
+        vec![taylor_bar::factory()]
     }
 }
 

@@ -17,20 +17,25 @@
 //! `physics.thermal`.
 
 mod cure;
+mod cure_reference;
 mod melting;
 mod mixture;
 mod parameters;
 mod phase_change;
+mod stefan;
 
 pub use cure::{CureKinetics, CureParameters, GlassTransition};
+pub use cure_reference::kamal_sourour_isothermal;
 pub use melting::{Melting, PhaseProperties};
 pub use mixture::{PhaseMixture, PhaseMixtureParameters};
 pub use parameters::{PhaseChangeMaterial, PhaseChangeParameters};
 pub use phase_change::PhaseChange;
+pub use stefan::neumann_lambda;
 
 use mpm_core::material::Material;
 use mpm_core::physics::{Physics, PhysicsFactory, TypedPhysicsFactory};
 use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory};
+use mpm_core::reference::ReferenceFactory;
 use mpm_core::scene::{Issue, Scene};
 use std::sync::Arc;
 
@@ -55,6 +60,12 @@ impl Plugin for PhaseChangePlugin {
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
         vec![Box::new(TypedPhysicsFactory::new("phase_change", build))]
+    }
+
+    fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
+        let mut references = vec![stefan::factory()];
+        references.extend(cure_reference::factories());
+        references
     }
 }
 

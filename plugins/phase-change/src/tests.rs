@@ -1,8 +1,8 @@
 //! Unit tests of the phase-change pieces against closed forms.
 
 use crate::cure::{CureKinetics, CureParameters, GlassTransition};
+use crate::kamal_sourour_isothermal;
 use crate::melting::{Melting, PhaseProperties};
-use mpm_core::closed_forms::kamal_sourour_isothermal;
 
 fn wax() -> Melting {
     let phase = PhaseProperties {

@@ -12,13 +12,16 @@
 mod boundary;
 mod conduction;
 mod parameters;
+mod reference;
 
 pub use boundary::{Convection, ThermalBoundary};
 pub use conduction::Thermal;
 pub use parameters::{Integrator, ThermalMaterial, ThermalParameters};
+pub use reference::{semi_infinite_temperature, slab_temperature};
 
 use mpm_core::physics::{Physics, PhysicsFactory, TypedPhysicsFactory};
 use mpm_core::plugin::{MaterialFactory, Plugin};
+use mpm_core::reference::ReferenceFactory;
 use mpm_core::scene::{Issue, Scene};
 use std::sync::Arc;
 
@@ -40,6 +43,10 @@ impl Plugin for ThermalPlugin {
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
         vec![Box::new(TypedPhysicsFactory::new("thermal", build))]
+    }
+
+    fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
+        reference::factories()
     }
 }
 

@@ -22,6 +22,7 @@
 //! Scene section: `physics.underfill` ([`UnderfillParameters`]).
 
 mod banded;
+mod capillary_filling;
 mod cross_section;
 mod front;
 mod hele_shaw;
@@ -31,6 +32,7 @@ mod underfill;
 mod viscosity;
 mod voids;
 
+pub use capillary_filling::{capillary_fill_time, capillary_front};
 pub use parameters::{
     Air, BumpArray, BumpPattern, FlowMode, Fluid, InitialFill, Reservoir, UnderfillParameters,
 };
@@ -39,6 +41,7 @@ pub use viscosity::{CastroMacoskoParameters, CrossParameters, MAX_VISCOSITY, Vis
 
 use mpm_core::physics::{Physics, PhysicsFactory, TypedPhysicsFactory};
 use mpm_core::plugin::{MaterialFactory, Plugin};
+use mpm_core::reference::ReferenceFactory;
 use mpm_core::scene::{Issue, Scene};
 use std::sync::Arc;
 
@@ -60,6 +63,10 @@ impl Plugin for UnderfillPlugin {
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
         vec![Box::new(TypedPhysicsFactory::new("underfill", build))]
+    }
+
+    fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
+        vec![capillary_filling::factory()]
     }
 }
 

@@ -98,3 +98,19 @@ pub fn deserialize_at<T: serde::de::DeserializeOwned>(
         Issue::new(path, message)
     })
 }
+
+/// A minimal `dimension`-D scene (one unit-square domain, nothing in it), for unit tests of
+/// sections that look at the scene they belong to (references, physics).
+#[doc(hidden)]
+pub fn test_scene(dimension: usize) -> Scene {
+    let unit = vec![1.0; dimension];
+    let json = serde_json::json!({
+        "name": "test",
+        "dimension": dimension,
+        "domain": { "min": vec![0.0; dimension], "max": unit, "cell_size": 0.1 },
+        "solver": { "end_time": 1.0 },
+        "materials": {},
+        "bodies": []
+    });
+    deserialize_at(&json, "$").unwrap_or_else(|issue| panic!("test scene: {issue}"))
+}

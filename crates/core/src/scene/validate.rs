@@ -5,6 +5,7 @@ use super::{Issue, SceneError, deserialize_at, types::*};
 use crate::material::Material;
 use crate::physics::Physics;
 use crate::plugin::Registry;
+use crate::reference::Reference;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -36,6 +37,8 @@ pub struct ValidatedScene {
     pub bodies: Vec<BodyParticles>,
     /// Built physics operators by section name, in the order they run.
     pub physics: Vec<(String, Arc<dyn Physics>)>,
+    /// The reference the run measures its error against, if the scene names one.
+    pub reference: Option<Arc<dyn Reference>>,
 }
 
 impl ValidatedScene {
@@ -84,6 +87,11 @@ pub fn parse_scene_value(
         dim: scene.dimension as usize,
     };
     v.check(&scene);
+    let reference = if v.dim == 2 || v.dim == 3 {
+        v.build_reference(&scene, registry)
+    } else {
+        None
+    };
     let materials = v.build_materials(&scene, registry);
     let physics = v.build_physics(&scene, registry, &materials);
     v.check_output_fields(&scene, &materials, &physics);
@@ -102,6 +110,7 @@ pub fn parse_scene_value(
         materials,
         bodies,
         physics,
+        reference,
     })
 }
 
@@ -187,9 +196,6 @@ impl Validator {
         self.positive("stop.max_energy_growth", s.stop.max_energy_growth);
         if !(s.stop.min_dt.is_finite() && s.stop.min_dt >= 0.0) {
             self.err("stop.min_dt", "must be a finite number >= 0");
-        }
-        if let Some(r) = &s.reference {
-            self.check_reference(r);
         }
     }
 
@@ -461,210 +467,32 @@ impl Validator {
         }
     }
 
-    fn check_reference(&mut self, r: &Reference) {
-        if r.axis().is_some_and(|a| a >= self.dim) {
-            self.err("reference.axis", format!("must be below {}", self.dim));
-        }
-        match r {
-            Reference::VibratingBar {
-                fixed_end,
-                length,
-                amplitude,
-                youngs_modulus,
-                density,
-                ..
-            } => {
-                if !fixed_end.is_finite() || !amplitude.is_finite() {
-                    self.err("reference", "fixed_end and amplitude must be finite");
-                }
-                self.positive("reference.length", *length);
-                self.positive("reference.youngs_modulus", *youngs_modulus);
-                self.positive("reference.density", *density);
-            }
-            Reference::CantileverElastica {
-                clamped_end,
-                length,
-                thickness,
-                youngs_modulus,
-                poisson_ratio,
-                density,
-                gravity,
-                ..
-            } => {
-                if !clamped_end.is_finite() {
-                    self.err("reference.clamped_end", "must be finite");
-                }
-                self.positive("reference.length", *length);
-                self.positive("reference.thickness", *thickness);
-                self.positive("reference.youngs_modulus", *youngs_modulus);
-                self.positive("reference.density", *density);
-                self.positive("reference.gravity", *gravity);
-                if !(*poisson_ratio > -1.0 && *poisson_ratio < 0.5) {
-                    self.err("reference.poisson_ratio", "must be in (-1, 0.5)");
-                }
-            }
-            Reference::TaylorBar {
-                wall,
-                center,
-                final_length,
-                mushroom_diameter,
-                peak_plastic_strain,
-                ..
-            } => {
-                if !wall.is_finite() {
-                    self.err("reference.wall", "must be finite");
-                }
-                if center.len() != self.dim - 1 || !center.iter().all(|c| c.is_finite()) {
-                    self.err(
-                        "reference.center",
-                        format!("must hold {} finite numbers", self.dim - 1),
-                    );
-                }
-                self.positive("reference.final_length", *final_length);
-                self.positive("reference.mushroom_diameter", *mushroom_diameter);
-                if let Some(e) = peak_plastic_strain {
-                    self.positive("reference.peak_plastic_strain", *e);
-                }
-            }
-            Reference::SlabTemperature {
-                min,
-                max,
-                initial_temperature,
-                surface_temperature,
-                diffusivity,
-                ..
-            } => {
-                if !(min.is_finite() && max.is_finite() && max > min) {
-                    self.err("reference.max", "must be finite and above reference.min");
-                }
-                self.positive("reference.initial_temperature", *initial_temperature);
-                self.positive("reference.surface_temperature", *surface_temperature);
-                self.positive("reference.diffusivity", *diffusivity);
-            }
-            Reference::SemiInfiniteTemperature {
-                surface,
-                initial_temperature,
-                surface_temperature,
-                diffusivity,
-                ..
-            } => {
-                if !surface.is_finite() {
-                    self.err("reference.surface", "must be finite");
-                }
-                self.positive("reference.initial_temperature", *initial_temperature);
-                self.positive("reference.surface_temperature", *surface_temperature);
-                self.positive("reference.diffusivity", *diffusivity);
-            }
-            Reference::Stefan {
-                surface,
-                length,
-                melt_temperature,
-                surface_temperature,
-                initial_temperature,
-                latent_heat,
-                liquid,
-                solid,
-                ..
-            } => {
-                if !surface.is_finite() {
-                    self.err("reference.surface", "must be finite");
-                }
-                self.positive("reference.length", *length);
-                self.positive("reference.latent_heat", *latent_heat);
-                if surface_temperature.is_nan() || surface_temperature <= melt_temperature {
-                    self.err(
-                        "reference.surface_temperature",
-                        "must be above the melting temperature (the body melts)",
-                    );
-                }
-                if !(initial_temperature <= melt_temperature && *initial_temperature > 0.0) {
-                    self.err(
-                        "reference.initial_temperature",
-                        "must be positive and at most the melting temperature",
-                    );
-                }
-                for (name, phase) in [("liquid", liquid), ("solid", solid)] {
-                    self.positive(
-                        &format!("reference.{name}.conductivity"),
-                        phase.conductivity,
-                    );
-                    self.positive(
-                        &format!("reference.{name}.specific_heat"),
-                        phase.specific_heat,
-                    );
-                    self.positive(&format!("reference.{name}.density"), phase.density);
-                }
-                if (liquid.density - solid.density).abs() > 1e-9 * liquid.density {
-                    self.err(
-                        "reference.solid.density",
-                        "Neumann's solution needs equal liquid and solid densities",
-                    );
-                }
-            }
-            Reference::IsothermalCure { k1, k2 } => {
-                self.positive("reference.k1", *k1);
-                if !(k2.is_finite() && *k2 >= 0.0) {
-                    self.err("reference.k2", "must be a finite number >= 0");
-                }
-            }
-            Reference::AdiabaticCure {
-                initial_temperature,
-                heat_of_reaction,
-                specific_heat,
-            } => {
-                self.positive("reference.initial_temperature", *initial_temperature);
-                self.positive("reference.heat_of_reaction", *heat_of_reaction);
-                self.positive("reference.specific_heat", *specific_heat);
-            }
-            Reference::CapillaryFilling {
-                entrance,
-                length,
-                gap,
-                surface_tension,
-                contact_angle,
-                viscosity,
-                ..
-            } => {
-                if !entrance.is_finite() {
-                    self.err("reference.entrance", "must be finite");
-                }
-                self.positive("reference.length", *length);
-                self.positive("reference.gap", *gap);
-                self.positive("reference.surface_tension", *surface_tension);
-                if !(*contact_angle >= 0.0 && *contact_angle < 90.0) {
-                    self.err(
-                        "reference.contact_angle",
-                        format!(
-                            "must be at least 0 and below 90 degrees (a wetting liquid; got {contact_angle})"
-                        ),
-                    );
-                }
-                self.positive("reference.viscosity", *viscosity);
-            }
-            Reference::PoiseuilleStartup {
-                axis,
-                cross_axis,
-                wall,
-                gap,
-                pressure_gradient,
-                viscosity,
-                density,
-            } => {
-                if *cross_axis >= self.dim {
-                    self.err(
-                        "reference.cross_axis",
-                        format!("must be below {}", self.dim),
-                    );
-                } else if cross_axis == axis {
-                    self.err("reference.cross_axis", "must differ from reference.axis");
-                }
-                if !wall.is_finite() {
-                    self.err("reference.wall", "must be finite");
-                }
-                self.positive("reference.gap", *gap);
-                self.positive("reference.pressure_gradient", *pressure_gradient);
-                self.positive("reference.viscosity", *viscosity);
-                self.positive("reference.density", *density);
+    /// Builds the scene's reference with the factory its `type` names.
+    fn build_reference(&mut self, s: &Scene, registry: &Registry) -> Option<Arc<dyn Reference>> {
+        let section = s.reference.as_ref()?;
+        let Some(type_name) = section.get("type").and_then(|t| t.as_str()) else {
+            self.err(
+                "reference.type",
+                "missing: a reference needs a `type` string",
+            );
+            return None;
+        };
+        let Some(factory) = registry.reference(type_name) else {
+            let known: Vec<&str> = registry.reference_types().collect();
+            self.err(
+                "reference.type",
+                format!(
+                    "unknown reference type `{type_name}` (registered: {})",
+                    known.join(", ")
+                ),
+            );
+            return None;
+        };
+        match factory.build(section, "reference", s) {
+            Ok(r) => Some(r),
+            Err(issues) => {
+                self.issues.extend(issues);
+                None
             }
         }
     }
@@ -1161,172 +989,4 @@ pub fn read_csv_particles(
         vol.push(v);
     }
     Ok((pos, vol))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The issues `check_reference` finds with a reference given as JSON, in a `dim`-D scene.
-    fn reference_issues(dim: usize, json: serde_json::Value) -> Vec<(String, String)> {
-        let r: Reference = serde_json::from_value(json).expect("a reference");
-        let mut v = Validator {
-            issues: Vec::new(),
-            dim,
-        };
-        v.check_reference(&r);
-        v.issues.into_iter().map(|i| (i.path, i.message)).collect()
-    }
-
-    fn capillary(overrides: serde_json::Value) -> serde_json::Value {
-        let mut r = serde_json::json!({
-            "type": "capillary_filling", "axis": 0, "entrance": 0.0, "length": 5e-3,
-            "gap": 5e-5, "surface_tension": 0.03, "contact_angle": 30.0, "viscosity": 2.0
-        });
-        for (k, v) in overrides.as_object().expect("an object") {
-            r[k] = v.clone();
-        }
-        r
-    }
-
-    fn poiseuille(overrides: serde_json::Value) -> serde_json::Value {
-        let mut r = serde_json::json!({
-            "type": "poiseuille_startup", "axis": 0, "cross_axis": 1, "wall": 0.0,
-            "gap": 1e-3, "pressure_gradient": 1e4, "viscosity": 0.5, "density": 1000.0
-        });
-        for (k, v) in overrides.as_object().expect("an object") {
-            r[k] = v.clone();
-        }
-        r
-    }
-
-    /// Asserts exactly one issue, at `path`, whose message contains `words`.
-    fn assert_one(issues: &[(String, String)], path: &str, words: &str) {
-        assert_eq!(issues.len(), 1, "{issues:?}");
-        assert_eq!(issues[0].0, path, "{issues:?}");
-        assert!(issues[0].1.contains(words), "{issues:?}");
-    }
-
-    #[test]
-    fn capillary_filling_reference_checks_name_their_json_paths() {
-        assert!(reference_issues(2, capillary(serde_json::json!({}))).is_empty());
-        assert!(reference_issues(3, capillary(serde_json::json!({"axis": 2}))).is_empty());
-        assert!(
-            reference_issues(2, capillary(serde_json::json!({"contact_angle": 0.0}))).is_empty()
-        );
-        let cases = [
-            (serde_json::json!({"axis": 2}), "reference.axis", "below 2"),
-            (
-                serde_json::json!({"length": 0.0}),
-                "reference.length",
-                "> 0",
-            ),
-            (serde_json::json!({"gap": -1e-5}), "reference.gap", "> 0"),
-            (
-                serde_json::json!({"surface_tension": 0.0}),
-                "reference.surface_tension",
-                "> 0",
-            ),
-            (
-                serde_json::json!({"contact_angle": 90.0}),
-                "reference.contact_angle",
-                "below 90",
-            ),
-            (
-                serde_json::json!({"contact_angle": -1.0}),
-                "reference.contact_angle",
-                "at least 0",
-            ),
-            (
-                serde_json::json!({"viscosity": -2.0}),
-                "reference.viscosity",
-                "> 0",
-            ),
-        ];
-        for (overrides, path, words) in cases {
-            assert_one(&reference_issues(2, capillary(overrides)), path, words);
-        }
-        // Non-finite numbers cannot be written in JSON; check the typed value directly.
-        let mut v = Validator {
-            issues: Vec::new(),
-            dim: 2,
-        };
-        v.check_reference(&Reference::CapillaryFilling {
-            axis: 0,
-            entrance: f64::NAN,
-            length: f64::INFINITY,
-            gap: 5e-5,
-            surface_tension: 0.03,
-            contact_angle: f64::NAN,
-            viscosity: 2.0,
-        });
-        let paths: Vec<&str> = v.issues.iter().map(|i| i.path.as_str()).collect();
-        assert_eq!(
-            paths,
-            [
-                "reference.entrance",
-                "reference.length",
-                "reference.contact_angle"
-            ]
-        );
-    }
-
-    #[test]
-    fn poiseuille_startup_reference_checks_name_their_json_paths() {
-        assert!(reference_issues(2, poiseuille(serde_json::json!({}))).is_empty());
-        assert!(
-            reference_issues(
-                3,
-                poiseuille(serde_json::json!({"axis": 2, "cross_axis": 0}))
-            )
-            .is_empty()
-        );
-        let cases = [
-            (serde_json::json!({"axis": 2}), "reference.axis", "below 2"),
-            (
-                serde_json::json!({"cross_axis": 2}),
-                "reference.cross_axis",
-                "below 2",
-            ),
-            (
-                serde_json::json!({"cross_axis": 0}),
-                "reference.cross_axis",
-                "differ",
-            ),
-            (serde_json::json!({"gap": 0.0}), "reference.gap", "> 0"),
-            (
-                serde_json::json!({"pressure_gradient": -1e4}),
-                "reference.pressure_gradient",
-                "> 0",
-            ),
-            (
-                serde_json::json!({"viscosity": 0.0}),
-                "reference.viscosity",
-                "> 0",
-            ),
-            (
-                serde_json::json!({"density": -1.0}),
-                "reference.density",
-                "> 0",
-            ),
-        ];
-        for (overrides, path, words) in cases {
-            assert_one(&reference_issues(2, poiseuille(overrides)), path, words);
-        }
-        let mut v = Validator {
-            issues: Vec::new(),
-            dim: 2,
-        };
-        v.check_reference(&Reference::PoiseuilleStartup {
-            axis: 0,
-            cross_axis: 1,
-            wall: f64::INFINITY,
-            gap: 1e-3,
-            pressure_gradient: f64::NAN,
-            viscosity: 0.5,
-            density: 1000.0,
-        });
-        let paths: Vec<&str> = v.issues.iter().map(|i| i.path.as_str()).collect();
-        assert_eq!(paths, ["reference.wall", "reference.pressure_gradient"]);
-    }
 }

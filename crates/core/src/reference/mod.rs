@@ -1,0 +1,239 @@
+//! Reference solutions a run measures its error against (the scene's `reference` section).
+//!
+//! A reference is registered by the crate that owns its physics, as materials and physics
+//! operators are: the core keeps the mechanics references it owns (vibrating bar, heavy
+//! elastica, Poiseuille start-up); the plugins add theirs (Taylor bar, heat conduction,
+//! Stefan, cure, capillary filling). An author writes a [`ReferenceLaw`] (generic over the
+//! dimension, like a material's `ConstitutiveLaw`) and a parameter struct, and returns a
+//! [`TypedReferenceFactory`] from `Plugin::references`.
+
+mod cantilever_elastica;
+mod poiseuille_startup;
+mod vibrating_bar;
+
+pub use cantilever_elastica::heavy_elastica_tip_deflection;
+pub use poiseuille_startup::{poiseuille_startup_profile, poiseuille_startup_velocity};
+
+use crate::output::Comparison;
+use crate::particles::Particles;
+use crate::scene::{Issue, Scene};
+use crate::section::{typed_params, typed_section_schema};
+use std::sync::Arc;
+
+/// One output frame as a reference sees it.
+#[derive(Clone, Copy)]
+pub struct Frame<'a, const D: usize> {
+    /// The particles (in storage order; `particles.id` maps to output order).
+    pub particles: &'a Particles<D>,
+    /// Simulated time of the frame.
+    pub time: f64,
+    /// Whether this is the run's last frame.
+    pub last: bool,
+}
+
+/// What a reference author writes: the error measure of one run, accumulated frame by
+/// frame. The value built from the scene is the state before any frame; every run starts
+/// from a clone of it.
+pub trait ReferenceLaw: Clone + Send + Sync + 'static {
+    /// What the error measures, in words, for the metrics (`error_kind`).
+    fn kind(&self) -> &'static str;
+    /// Whether [`Frame::particles`] must carry each particle's initial position.
+    fn needs_initial_positions(&self) -> bool {
+        false
+    }
+    /// Takes one output frame into account (the first is the initial state at t = 0).
+    fn observe<const D: usize>(&mut self, frame: Frame<'_, D>);
+    /// The error so far (`None` before anything was measured).
+    fn error(&self) -> Option<f64>;
+    /// Reference value, where the error compares two numbers.
+    fn expected(&self) -> Option<f64> {
+        None
+    }
+    /// Measured value, where the error compares two numbers.
+    fn measured(&self) -> Option<f64> {
+        None
+    }
+    /// Further quantities compared with reference values.
+    fn comparisons(&self) -> Vec<Comparison> {
+        Vec::new()
+    }
+}
+
+/// A reference as the solver holds it (object-safe; every [`ReferenceLaw`] is one).
+pub trait Reference: Send + Sync {
+    /// A tracker for a new run, with nothing observed.
+    fn start(&self) -> Box<dyn Reference>;
+    /// See [`ReferenceLaw::kind`].
+    fn kind(&self) -> &'static str;
+    /// See [`ReferenceLaw::needs_initial_positions`].
+    fn needs_initial_positions(&self) -> bool;
+    /// Observes a 2D frame.
+    fn observe_2d(&mut self, frame: Frame<'_, 2>);
+    /// Observes a 3D frame.
+    fn observe_3d(&mut self, frame: Frame<'_, 3>);
+    /// See [`ReferenceLaw::error`].
+    fn error(&self) -> Option<f64>;
+    /// See [`ReferenceLaw::expected`].
+    fn expected(&self) -> Option<f64>;
+    /// See [`ReferenceLaw::measured`].
+    fn measured(&self) -> Option<f64>;
+    /// See [`ReferenceLaw::comparisons`].
+    fn comparisons(&self) -> Vec<Comparison>;
+}
+
+impl<T: ReferenceLaw> Reference for T {
+    fn start(&self) -> Box<dyn Reference> {
+        Box::new(self.clone())
+    }
+    fn kind(&self) -> &'static str {
+        ReferenceLaw::kind(self)
+    }
+    fn needs_initial_positions(&self) -> bool {
+        ReferenceLaw::needs_initial_positions(self)
+    }
+    fn observe_2d(&mut self, frame: Frame<'_, 2>) {
+        self.observe::<2>(frame)
+    }
+    fn observe_3d(&mut self, frame: Frame<'_, 3>) {
+        self.observe::<3>(frame)
+    }
+    fn error(&self) -> Option<f64> {
+        ReferenceLaw::error(self)
+    }
+    fn expected(&self) -> Option<f64> {
+        ReferenceLaw::expected(self)
+    }
+    fn measured(&self) -> Option<f64> {
+        ReferenceLaw::measured(self)
+    }
+    fn comparisons(&self) -> Vec<Comparison> {
+        ReferenceLaw::comparisons(self)
+    }
+}
+
+/// Builds one reference type from the scene's `reference` section.
+pub trait ReferenceFactory: Send + Sync {
+    /// Value of the section's `type` key (`vibrating_bar`).
+    fn type_name(&self) -> &'static str;
+    /// JSON Schema of the whole section, `type` key included.
+    fn schema(&self) -> serde_json::Value;
+    /// Reads and checks the section against the scene (its dimension, say); issues carry
+    /// full JSON paths below `path`.
+    fn build(
+        &self,
+        section: &serde_json::Value,
+        path: &str,
+        scene: &Scene,
+    ) -> Result<Arc<dyn Reference>, Vec<Issue>>;
+}
+
+/// Checks a typed reference section and builds the reference (see [`TypedReferenceFactory`]).
+pub type BuildReferenceFn<P> = fn(P, &str, &Scene) -> Result<Arc<dyn Reference>, Vec<Issue>>;
+
+/// A [`ReferenceFactory`] for a parameter struct `P` (serde + schemars): it strips the
+/// `type` key, deserialises `P` with JSON-path errors, derives the schema, calls `build`.
+pub struct TypedReferenceFactory<P> {
+    type_name: &'static str,
+    build: BuildReferenceFn<P>,
+}
+
+impl<P> TypedReferenceFactory<P> {
+    /// A factory for reference type `type_name`.
+    pub fn new(type_name: &'static str, build: BuildReferenceFn<P>) -> Self {
+        Self { type_name, build }
+    }
+}
+
+impl<P> ReferenceFactory for TypedReferenceFactory<P>
+where
+    P: serde::de::DeserializeOwned + schemars::JsonSchema + Send + Sync,
+{
+    fn type_name(&self) -> &'static str {
+        self.type_name
+    }
+
+    fn schema(&self) -> serde_json::Value {
+        typed_section_schema::<P>(self.type_name, "Reference type.")
+    }
+
+    fn build(
+        &self,
+        section: &serde_json::Value,
+        path: &str,
+        scene: &Scene,
+    ) -> Result<Arc<dyn Reference>, Vec<Issue>> {
+        (self.build)(typed_params(section, path)?, path, scene)
+    }
+}
+
+/// The references the core owns (mechanics), present in every registry.
+pub fn core_references() -> Vec<Box<dyn ReferenceFactory>> {
+    vec![
+        vibrating_bar::factory(),
+        cantilever_elastica::factory(),
+        poiseuille_startup::factory(),
+    ]
+}
+
+/// A relative L2 error accumulated over frames: sqrt(Σ error² / Σ reference²).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RelativeL2 {
+    numerator: f64,
+    denominator: f64,
+}
+
+impl RelativeL2 {
+    /// Adds one term: the squared error and the squared reference it is relative to.
+    pub fn add(&mut self, error_squared: f64, reference_squared: f64) {
+        self.numerator += error_squared;
+        self.denominator += reference_squared;
+    }
+
+    /// The error so far (`None` while the reference sum is zero).
+    pub fn value(&self) -> Option<f64> {
+        (self.denominator > 0.0).then(|| (self.numerator / self.denominator).sqrt())
+    }
+}
+
+/// A comparison of a measured quantity with its reference value.
+pub fn compare(quantity: &str, measured: f64, reference: f64) -> Comparison {
+    Comparison {
+        quantity: quantity.into(),
+        measured,
+        reference,
+        relative_difference: (measured - reference) / reference,
+    }
+}
+
+/// Test particles for reference unit tests: positions, volumes and zeroed shared fields
+/// named `fields` (no material groups).
+#[doc(hidden)]
+pub fn test_particles<const D: usize>(
+    positions: &[[f64; D]],
+    volumes: &[f64],
+    fields: &[&'static str],
+) -> Particles<D> {
+    let n = positions.len();
+    let mut shared = crate::physics::ParticleFields::default();
+    for name in fields {
+        shared.add(crate::physics::SharedFieldSpec { name, initial: 0.0 }, n);
+    }
+    Particles {
+        position: positions
+            .iter()
+            .map(|p| crate::math::vector_from_slice(p))
+            .collect(),
+        velocity: vec![crate::math::Vector::<D>::zeros(); n],
+        mass: vec![1.0; n],
+        volume0: volumes.to_vec(),
+        deformation_gradient: Vec::new(),
+        stress: Vec::new(),
+        affine: Vec::new(),
+        velocity_gradient: Vec::new(),
+        half_size: Vec::new(),
+        initial_position: Vec::new(),
+        id: (0..n as u32).collect(),
+        groups: Vec::new(),
+        shared,
+    }
+}

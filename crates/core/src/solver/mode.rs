@@ -1,0 +1,42 @@
+//! Time-integration modes: how a run advances one step. Every mode drives the same
+//! [`Simulation`] state and stages; the run loop (`run_loop`) is shared. A new mode
+//! (implicit, total-Lagrangian, staged) is a new file implementing [`StepMode`] and one arm
+//! in [`for_scene`].
+
+use super::DimensionDispatch;
+use super::explicit::Explicit;
+use super::mechanics_off::MechanicsOff;
+use super::quasi_static::QuasiStatic;
+use super::simulation::Simulation;
+use crate::kernels::Kernel;
+use crate::material::Material;
+use crate::scene::Mechanics;
+
+/// One time-integration mode.
+pub(crate) trait StepMode<const D: usize, K: Kernel>: Send {
+    /// Advances physics and mechanics by `dt` (the run loop moves the clock).
+    fn advance(&mut self, sim: &mut Simulation<D, K>, dt: f64);
+    /// The largest stable step for the current state at Courant number 1 (infinite when
+    /// nothing in the mode bounds it).
+    fn stable_dt(&self, sim: &Simulation<D, K>) -> f64;
+}
+
+/// The mode the scene's `solver.mechanics` asks for.
+pub(super) fn for_scene<const D: usize, K: Kernel>(mechanics: Mechanics) -> Box<dyn StepMode<D, K>>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    match mechanics {
+        Mechanics::Dynamic => Box::new(Explicit),
+        Mechanics::Off => Box::new(MechanicsOff),
+        Mechanics::QuasiStatic {
+            max_iterations,
+            tolerance,
+            damping,
+        } => Box::new(QuasiStatic {
+            max_iterations,
+            tolerance,
+            damping,
+        }),
+    }
+}

@@ -1,0 +1,330 @@
+//! The run loop every mode shares: the time step choice (adaptive or fixed, landing on
+//! output times), output frames, the reference, the energy balance and the stop checks.
+
+use super::output_staging::fill_staging;
+use super::simulation::Simulation;
+use super::stats::ParticleFault;
+use super::volume_averaging::VolumeAverage;
+use super::{Control, DimensionDispatch, Progress, RunError, RunObserver};
+use crate::kernels::Kernel;
+use crate::material::Material;
+use crate::output::{
+    Diagnostic, FRAME_DIAGNOSTICS, Frame, Metrics, Outcome, OutputError, OutputSink, RunInfo,
+};
+use crate::reference::Frame as ReferenceFrame;
+use std::time::Instant;
+
+impl<const D: usize, K: Kernel> Simulation<D, K>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    /// The first failed check after a step, as a diagnostic.
+    pub(super) fn check(&self, energy_growth: f64) -> Option<Diagnostic> {
+        let make = |fault: ParticleFault, message: &str| Diagnostic {
+            step: self.steps,
+            time: self.time,
+            particle: Some(self.particles.id[fault.particle] as usize),
+            field: fault.field.into(),
+            value: fault.value,
+            message: message.into(),
+        };
+        if let Some(f) = self.kinematics.non_finite {
+            return Some(make(f, "a particle value became NaN or infinite"));
+        }
+        if let Some(f) = self.stresses.non_finite {
+            return Some(make(f, "a particle stress became NaN or infinite"));
+        }
+        if let Some(fault) = &self.report.fault {
+            return Some(Diagnostic {
+                step: self.steps,
+                time: self.time,
+                particle: fault.particle.map(|p| self.particles.id[p] as usize),
+                field: fault.field.clone(),
+                value: fault.value,
+                message: fault.message.clone(),
+            });
+        }
+        for name in self.particles.shared.names() {
+            let values = self.particles.shared.get(name).unwrap_or(&[]);
+            if let Some(p) = values.iter().position(|v| !v.is_finite()) {
+                return Some(Diagnostic {
+                    step: self.steps,
+                    time: self.time,
+                    particle: Some(self.particles.id[p] as usize),
+                    field: (*name).into(),
+                    value: values[p],
+                    message: format!("the particle field `{name}` became NaN or infinite"),
+                });
+            }
+        }
+        if self.kinematics.min_det_f <= 0.0 {
+            let f = ParticleFault {
+                particle: self.kinematics.min_det_particle,
+                field: "det_f",
+                value: self.kinematics.min_det_f,
+            };
+            return Some(make(
+                f,
+                "det F <= 0: a particle was inverted (time step too large or the mesh is tangled)",
+            ));
+        }
+        if let Some(f) = self.kinematics.escaped {
+            return Some(make(
+                f,
+                "a particle left the grid (add walls or enlarge the domain)",
+            ));
+        }
+        if let Some(limit) = self.settings.max_speed
+            && self.kinematics.max_speed > limit
+        {
+            return Some(Diagnostic {
+                step: self.steps,
+                time: self.time,
+                particle: None,
+                field: "speed".into(),
+                value: self.kinematics.max_speed,
+                message: format!("the largest particle speed exceeds stop.max_speed = {limit}"),
+            });
+        }
+        if self.settings.mechanics.is_dynamic() && energy_growth > self.settings.max_energy_growth {
+            return Some(Diagnostic {
+                step: self.steps,
+                time: self.time,
+                particle: None,
+                field: "energy".into(),
+                value: energy_growth,
+                message: format!(
+                    "total energy grew by {:.3} of the largest mechanical energy, past stop.max_energy_growth = {}",
+                    energy_growth, self.settings.max_energy_growth
+                ),
+            });
+        }
+        None
+    }
+
+    pub(super) fn write_frame(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        index: usize,
+        dt: f64,
+    ) -> Result<(), OutputError> {
+        fill_staging(&self.particles, &self.fields, &mut self.staging);
+        let k = &self.kinematics;
+        let strain = self.stresses.batch.strain_energy;
+        let diagnostics = [
+            self.steps as f64,
+            dt,
+            k.kinetic_energy,
+            strain,
+            k.gravity_energy,
+            k.kinetic_energy + strain + k.gravity_energy,
+            k.max_speed,
+            k.min_det_f,
+            k.momentum.norm(),
+            self.boundary_work,
+        ];
+        debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
+        sink.write_frame(&Frame {
+            index,
+            time: self.time,
+            values: &self.staging,
+            diagnostics: &diagnostics,
+        })
+    }
+
+    /// Shows the reference (if any) the current state as an output frame.
+    pub(super) fn observe_reference(&mut self, last: bool) {
+        if let Some(r) = &mut self.reference {
+            let frame = ReferenceFrame {
+                particles: &self.particles,
+                time: self.time,
+                last,
+            };
+            <dyn Material as DimensionDispatch<D>>::observe_reference(r.as_mut(), frame);
+        }
+    }
+
+    /// Computes the initial stress and refuses a fixed time step above the stable one.
+    pub fn preflight(&mut self) -> Result<(), RunError> {
+        self.initialise();
+        let stable = self.stable_dt();
+        if let Some(dt) = self.settings.fixed_dt
+            && dt > self.settings.max_cfl * stable
+        {
+            return Err(RunError::Refused {
+                path: "solver.dt".into(),
+                message: format!(
+                    "the fixed time step {dt:e} s exceeds the stable step {stable:e} s by a factor \
+                     {:.3}; solver.max_cfl allows at most {} (lower dt, or raise max_cfl at your risk)",
+                    dt / stable,
+                    self.settings.max_cfl
+                ),
+            });
+        }
+        if self.settings.fixed_dt.is_none() && !stable.is_finite() {
+            return Err(RunError::Refused {
+                path: "solver.dt".into(),
+                message: "needed: nothing in this scene bounds the time step (mechanics is not \
+                          dynamic and every physics operator is implicit), so give the step size"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Runs to the end time, writing frames to `sink` and reporting to `observer`.
+    pub fn run(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        observer: &mut dyn RunObserver,
+    ) -> Result<Metrics, RunError> {
+        self.preflight()?;
+        let n = self.particles.len();
+        sink.begin(&RunInfo {
+            name: &self.name,
+            dimension: D,
+            particles: n,
+            fields: &self.fields,
+            scene: &self.scene_json,
+        })?;
+        let start = Instant::now();
+        let end_time = self.settings.end_time;
+        let frame_dt = end_time / self.settings.frames as f64;
+        let mut frame = 0usize;
+        let mut dt;
+        self.write_frame(sink, frame, 0.0)?;
+        self.observe_reference(false);
+        frame += 1;
+        let energy0 = self.total_energy();
+        let mut mechanical_max = self.kinematics.kinetic_energy + self.stresses.batch.strain_energy;
+        let mut drift = 0.0f64;
+        let mut max_drift = 0.0f64;
+        let mut min_det = self.kinematics.min_det_f;
+        let mut max_speed = self.kinematics.max_speed;
+        let mut max_momentum = self.kinematics.momentum.norm();
+        let mut outcome = Outcome::Finished;
+        let mut diagnostic = None;
+        let eps = 1e-9 * frame_dt;
+        while self.time < end_time - eps {
+            let stable = self.stable_dt();
+            dt = match self.settings.fixed_dt {
+                Some(fixed) => {
+                    if fixed > self.settings.max_cfl * stable {
+                        outcome = Outcome::Stopped;
+                        diagnostic = Some(Diagnostic {
+                            step: self.steps,
+                            time: self.time,
+                            particle: None,
+                            field: "dt".into(),
+                            value: fixed,
+                            message: format!(
+                                "the fixed time step exceeds {} times the stable step {stable:e} s \
+                                 (particles sped up); stopped before it could blow up",
+                                self.settings.max_cfl
+                            ),
+                        });
+                        break;
+                    }
+                    fixed
+                }
+                None => self.settings.cfl * stable,
+            };
+            if dt < self.settings.min_dt || !dt.is_finite() {
+                outcome = Outcome::Stopped;
+                diagnostic = Some(Diagnostic {
+                    step: self.steps,
+                    time: self.time,
+                    particle: None,
+                    field: "dt".into(),
+                    value: dt,
+                    message: format!(
+                        "the time step fell below stop.min_dt = {:e} s",
+                        self.settings.min_dt
+                    ),
+                });
+                break;
+            }
+            // Land exactly on output times.
+            let next_frame_time = (frame as f64 * frame_dt).min(end_time);
+            if self.time + dt > next_frame_time - eps {
+                dt = next_frame_time - self.time;
+            }
+            self.step(dt);
+            let k = &self.kinematics;
+            let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
+            mechanical_max = mechanical_max.max(mechanical);
+            // Energy balance: what the body gained beyond the work done on it from outside.
+            let energy = self.total_energy() - self.boundary_work;
+            drift = if mechanical_max > 0.0 {
+                (energy - energy0) / mechanical_max
+            } else {
+                0.0
+            };
+            if drift.is_finite() {
+                max_drift = max_drift.max(drift.abs());
+            }
+            min_det = min_det.min(k.min_det_f);
+            max_speed = max_speed.max(k.max_speed);
+            max_momentum = max_momentum.max(k.momentum.norm());
+            if let Some(d) = self.check(if drift.is_nan() { f64::INFINITY } else { drift }) {
+                outcome = Outcome::Stopped;
+                diagnostic = Some(d);
+                break;
+            }
+            if self.time >= next_frame_time - eps {
+                let last = self.time >= end_time - eps;
+                self.write_frame(sink, frame, dt)?;
+                self.observe_reference(last);
+                frame += 1;
+            }
+            let progress = Progress {
+                step: self.steps,
+                time: self.time,
+                end_time,
+                dt,
+                wall_seconds: start.elapsed().as_secs_f64(),
+            };
+            if observer.progress(&progress) == Control::Cancel {
+                outcome = Outcome::Cancelled;
+                break;
+            }
+        }
+        let wall = start.elapsed().as_secs_f64();
+        let metrics = Metrics {
+            outcome: Some(outcome),
+            wall_seconds: wall,
+            steps: self.steps,
+            simulated_time: self.time,
+            particles: n,
+            particle_steps_per_second: if wall > 0.0 {
+                self.steps as f64 * n as f64 / wall
+            } else {
+                0.0
+            },
+            bytes_per_particle: self.particles.bytes_per_particle(),
+            grid_bytes: self.grid.bytes()
+                + self.volume_average.as_ref().map_or(0, VolumeAverage::bytes),
+            energy_drift: drift,
+            max_energy_drift: max_drift,
+            error: self.reference.as_ref().and_then(|r| r.error()),
+            error_kind: self.reference.as_ref().map(|r| r.kind().to_string()),
+            reference_value: self.reference.as_ref().and_then(|r| r.expected()),
+            measured_value: self.reference.as_ref().and_then(|r| r.measured()),
+            comparisons: self
+                .reference
+                .as_ref()
+                .map_or_else(Vec::new, |r| r.comparisons()),
+            min_det_f: min_det,
+            max_speed,
+            max_momentum,
+            boundary_work: self.boundary_work,
+            frames: frame,
+            threads: rayon::current_num_threads(),
+            diagnostic,
+            physics: self.report.maxima.iter().cloned().collect(),
+            tables: self.report.tables.iter().cloned().collect(),
+        };
+        sink.finish(&metrics)?;
+        Ok(metrics)
+    }
+}

@@ -1,0 +1,221 @@
+//! Building a [`Simulation`] from a validated scene: the grid, the particles of every body
+//! grouped by material, material state, output buffers, physics slots and the mode.
+
+use super::DimensionDispatch;
+use super::binning::{Reorder, SlabBins};
+use super::output_staging::output_fields;
+use super::simulation::{PhysicsSlot, Settings, Simulation};
+use super::stats::KinematicStats;
+use super::stress_update::{StressScratch, StressStats};
+use super::volume_averaging::VolumeAverage;
+use crate::boundary::Boundaries;
+use crate::grid::Grid;
+use crate::kernels::Kernel;
+use crate::material::{FieldInit, Material};
+use crate::math::{Matrix, Vector, vector_from_slice};
+use crate::particles::{MaterialGroup, Particles};
+use crate::physics::{GroupView, Interpolation, ParticleFields, PhysicsReport};
+use crate::scene::{Transfer, ValidatedScene};
+
+impl<const D: usize, K: Kernel> Simulation<D, K>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    /// Builds grid and particles for a validated scene; allocates only what it needs.
+    pub fn new(v: &ValidatedScene) -> Self {
+        let s = &v.scene;
+        let dx = s.domain.cell_size;
+        let pad = crate::boundary::GRID_PADDING;
+        let mut min: Vector<D> = vector_from_slice(&s.domain.min);
+        let mut domain_cells = [1usize; 3];
+        let mut cells = [1usize; 3];
+        for d in 0..D {
+            domain_cells[d] = ((s.domain.max[d] - s.domain.min[d]) / dx - 1e-9).ceil() as usize;
+            cells[d] = domain_cells[d] + 2 * pad;
+            min[d] -= pad as f64 * dx;
+        }
+        let flip = s.solver.transfer == Transfer::Flip;
+        let grid = Grid::new(min, cells, dx, flip);
+
+        let reference = v.reference.as_ref().map(|r| r.start());
+        // F-bar averages this step's volume change, which it reads from the gradient.
+        let needs_gradient = v.materials.values().any(|m| m.needs_velocity_gradient())
+            || s.solver.anti_locking == crate::scene::AntiLocking::Fbar;
+        let n = v.particle_count();
+        let alloc_if = |yes: bool| if yes { n } else { 0 };
+        let mut particles = Particles::<D> {
+            position: Vec::with_capacity(n),
+            velocity: Vec::with_capacity(n),
+            mass: Vec::with_capacity(n),
+            volume0: Vec::with_capacity(n),
+            deformation_gradient: vec![Matrix::<D>::identity(); n],
+            stress: vec![Matrix::<D>::zeros(); n],
+            affine: vec![Matrix::<D>::zeros(); alloc_if(s.solver.transfer == Transfer::Apic)],
+            velocity_gradient: vec![Matrix::<D>::zeros(); alloc_if(needs_gradient)],
+            half_size: Vec::with_capacity(alloc_if(K::USES_PARTICLE_SIZE)),
+            initial_position: Vec::with_capacity(alloc_if(
+                reference
+                    .as_ref()
+                    .is_some_and(|r| r.needs_initial_positions()),
+            )),
+            id: Vec::with_capacity(n),
+            groups: Vec::new(),
+            shared: ParticleFields::default(),
+        };
+        for (_, physics) in &v.physics {
+            for spec in physics.fields() {
+                particles.shared.add(spec, n);
+            }
+        }
+        // Bodies of one material are stored together so each law sees contiguous batches.
+        let mut order: Vec<&crate::scene::BodyParticles> = v.bodies.iter().collect();
+        order.sort_by_key(|b| &s.bodies[b.body].material);
+        let mut output_index = vec![0usize; v.bodies.len()];
+        let mut next = 0;
+        for b in &v.bodies {
+            output_index[b.body] = next;
+            next += b.volumes.len();
+        }
+        for body in order {
+            let name = &s.bodies[body.body].material;
+            let material = v.materials[name].clone();
+            let start = particles.position.len();
+            let count = body.volumes.len();
+            if particles.groups.last().is_none_or(|g| &g.name != name) {
+                particles.groups.push(MaterialGroup {
+                    name: name.clone(),
+                    material: material.clone(),
+                    range: start..start,
+                    state: Vec::new(),
+                });
+            }
+            for p in 0..count {
+                let x: Vector<D> = vector_from_slice(&body.positions[p * D..]);
+                particles.position.push(x);
+                particles
+                    .velocity
+                    .push(vector_from_slice(&body.velocities[p * D..]));
+                particles.volume0.push(body.volumes[p]);
+                particles.mass.push(body.volumes[p] * material.density());
+                particles.id.push((output_index[body.body] + p) as u32);
+                if K::USES_PARTICLE_SIZE {
+                    particles.half_size.push(0.5 * body.spacing / dx);
+                }
+                if particles.initial_position.capacity() > 0 {
+                    particles.initial_position.push(x);
+                }
+            }
+            particles.groups.last_mut().unwrap().range.end = start + count;
+        }
+        for group in &mut particles.groups {
+            let count = group.range.len();
+            group.state = group
+                .material
+                .state_fields()
+                .iter()
+                .map(|spec| {
+                    let c = spec.components;
+                    let mut field = vec![0.0; count * c];
+                    match spec.initial {
+                        FieldInit::Zero => {}
+                        FieldInit::Identity => {
+                            for p in 0..count {
+                                for d in 0..D {
+                                    field[p * c + d * D + d] = 1.0;
+                                }
+                            }
+                        }
+                        FieldInit::Constant(value) => field.fill(value),
+                        FieldInit::Values(values) => {
+                            for chunk in field.chunks_exact_mut(c) {
+                                for (x, v) in chunk.iter_mut().zip(values) {
+                                    *x = *v;
+                                }
+                            }
+                        }
+                    }
+                    field
+                })
+                .collect();
+        }
+
+        let fields = output_fields::<D>(&s.output.fields, &particles);
+        let staging = fields
+            .iter()
+            .map(|f| vec![0.0; f.components() * n])
+            .collect();
+        let settings = Settings {
+            transfer: s.solver.transfer,
+            flip_blend: s.solver.flip_blend,
+            mls: s.solver.mls,
+            scheme: s.solver.scheme,
+            cfl: s.solver.cfl,
+            fixed_dt: s.solver.dt,
+            max_cfl: s.solver.max_cfl,
+            end_time: s.solver.end_time,
+            gravity: s
+                .solver
+                .gravity
+                .as_deref()
+                .map(vector_from_slice)
+                .unwrap_or_else(Vector::<D>::zeros),
+            damping: s.solver.damping,
+            sort_interval: s.solver.sort_interval,
+            frames: s.output.frames,
+            max_speed: s.stop.max_speed,
+            max_energy_growth: s.stop.max_energy_growth,
+            min_dt: s.stop.min_dt,
+            mechanics: s.solver.mechanics,
+        };
+        let group_views = particles
+            .groups
+            .iter()
+            .map(|g| GroupView {
+                name: g.name.clone(),
+                range: g.range.clone(),
+            })
+            .collect();
+        let physics: Vec<PhysicsSlot> = v
+            .physics
+            .iter()
+            .map(|(_, p)| PhysicsSlot {
+                physics: p.clone(),
+                scratch: vec![vec![0.0; grid.len()]; p.grid_arrays()],
+            })
+            .collect();
+        let needs_interpolation = physics.iter().any(|p| p.physics.needs_interpolation());
+        let bins = SlabBins::new(grid.nodes[0], K::SPAN, n);
+        let grid_nodes = grid.len();
+        Self {
+            boundaries: Boundaries::new(&s.domain.walls, &s.obstacles, domain_cells),
+            grid,
+            particles,
+            settings,
+            bins,
+            reorder: Reorder::new(n),
+            reference,
+            fields,
+            staging,
+            scene_json: v.json.clone(),
+            name: s.name.clone(),
+            time: 0.0,
+            steps: 0,
+            kinematics: KinematicStats::default(),
+            stresses: StressStats::default(),
+            boundary_work: 0.0,
+            volume_average: (s.solver.anti_locking == crate::scene::AntiLocking::Fbar)
+                .then(|| VolumeAverage::new(grid_nodes)),
+            physics,
+            interpolation: Interpolation::default(),
+            needs_interpolation,
+            group_views,
+            report: PhysicsReport::default(),
+            stress_scratch: StressScratch::default(),
+            physics_dt: f64::INFINITY,
+            relax_time: None,
+            sort_counter: 0,
+            mode: Some(super::mode::for_scene(s.solver.mechanics)),
+            _kernel: std::marker::PhantomData,
+        }
+    }
+}

@@ -1,0 +1,325 @@
+//! The state of a run (grid, particles, boundaries, physics operators, statistics) and the
+//! stages every time-integration mode is made of.
+
+use super::DimensionDispatch;
+use super::binning::{Reorder, SlabBins};
+use super::grid_to_particle::{G2pParams, grid_to_particle, measure};
+use super::grid_update::{GridParams, update_grid};
+use super::interpolation::build_interpolation;
+use super::mode::StepMode;
+use super::particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
+use super::stats::{KinematicStats, ParticleFault};
+use super::stress_update::{StressScratch, StressStats, update_stress};
+use super::timestep::stable_time_step;
+use super::volume_averaging::VolumeAverage;
+use crate::boundary::Boundaries;
+use crate::grid::Grid;
+use crate::kernels::Kernel;
+use crate::material::Material;
+use crate::math::Vector;
+use crate::output::FieldInfo;
+use crate::particles::Particles;
+use crate::physics::{
+    GroupView, Interpolation, ParticleView, Physics, PhysicsContext, PhysicsReport, Stage,
+};
+use crate::reference::Reference;
+use crate::scene::{Mechanics, Scheme, Transfer};
+use std::sync::Arc;
+
+/// One physics operator of a run with its grid scratch arrays.
+pub(super) struct PhysicsSlot {
+    pub(super) physics: Arc<dyn Physics>,
+    pub(super) scratch: Vec<Vec<f64>>,
+}
+
+/// Settings of the run taken from the scene.
+#[derive(Clone, Debug)]
+pub(super) struct Settings<const D: usize> {
+    pub(super) transfer: Transfer,
+    pub(super) flip_blend: f64,
+    pub(super) mls: bool,
+    pub(super) scheme: Scheme,
+    pub(super) cfl: f64,
+    pub(super) fixed_dt: Option<f64>,
+    pub(super) max_cfl: f64,
+    pub(super) end_time: f64,
+    pub(super) gravity: Vector<D>,
+    pub(super) damping: f64,
+    pub(super) sort_interval: u32,
+    pub(super) frames: u32,
+    pub(super) max_speed: Option<f64>,
+    pub(super) max_energy_growth: f64,
+    pub(super) min_dt: f64,
+    pub(super) mechanics: Mechanics,
+}
+
+/// An explicit MPM simulation in `D` dimensions with kernel `K`.
+pub struct Simulation<const D: usize, K: Kernel> {
+    /// The background grid.
+    pub grid: Grid<D>,
+    /// The particles.
+    pub particles: Particles<D>,
+    pub(super) boundaries: Boundaries<D>,
+    pub(super) settings: Settings<D>,
+    pub(super) bins: SlabBins,
+    pub(super) reorder: Reorder,
+    pub(super) reference: Option<Box<dyn Reference>>,
+    pub(super) fields: Vec<FieldInfo>,
+    pub(super) staging: Vec<Vec<f64>>,
+    pub(super) scene_json: serde_json::Value,
+    pub(super) name: String,
+    pub(super) time: f64,
+    pub(super) steps: u64,
+    pub(super) kinematics: KinematicStats<D>,
+    pub(super) stresses: StressStats,
+    pub(super) boundary_work: f64,
+    pub(super) volume_average: Option<VolumeAverage>,
+    pub(super) physics: Vec<PhysicsSlot>,
+    pub(super) interpolation: Interpolation<D>,
+    pub(super) needs_interpolation: bool,
+    pub(super) group_views: Vec<GroupView>,
+    pub(super) report: PhysicsReport,
+    pub(super) stress_scratch: StressScratch<D>,
+    /// Smallest stable step of the explicit physics operators, after the last step.
+    pub(super) physics_dt: f64,
+    /// The clock obstacles see during quasi-static relaxation (the end of the step).
+    pub(super) relax_time: Option<f64>,
+    /// Mechanical steps taken, for the reordering interval.
+    pub(super) sort_counter: u64,
+    /// The time-integration mode (taken out while it advances the simulation).
+    pub(super) mode: Option<Box<dyn StepMode<D, K>>>,
+    pub(super) _kernel: std::marker::PhantomData<K>,
+}
+
+impl<const D: usize, K: Kernel> Simulation<D, K>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    /// The scene's walls and obstacles as they act on the grid (reduced-order runs reuse
+    /// them for their own grid updates).
+    pub fn boundaries(&self) -> &Boundaries<D> {
+        &self.boundaries
+    }
+
+    /// Simulated time.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Total momentum of the particles after the last step.
+    pub fn momentum(&self) -> Vector<D> {
+        self.kinematics.momentum
+    }
+
+    /// Work done on the body by moving obstacles so far.
+    pub fn boundary_work(&self) -> f64 {
+        self.boundary_work
+    }
+
+    /// Kinetic + strain + gravitational energy after the last step.
+    pub fn total_energy(&self) -> f64 {
+        self.kinematics.kinetic_energy
+            + self.stresses.batch.strain_energy
+            + self.kinematics.gravity_energy
+    }
+
+    /// The largest stable step for the current state (Courant number 1), as the run's
+    /// time-integration mode bounds it.
+    pub fn stable_dt(&self) -> f64 {
+        self.mode
+            .as_ref()
+            .map_or(self.physics_dt, |mode| mode.stable_dt(self))
+    }
+
+    /// The mechanical (CFL) bound on the step at Courant number 1.
+    pub(super) fn mechanical_dt(&self) -> f64 {
+        stable_time_step(
+            self.grid.dx,
+            self.kinematics.max_speed,
+            self.stresses.batch.max_wave_speed,
+        )
+    }
+
+    /// Calls `visit` with every physics operator, in order, and its context for a step of
+    /// `dt` ending at `time`.
+    pub(super) fn each_physics(
+        &mut self,
+        dt: f64,
+        time: f64,
+        mut visit: impl FnMut(&dyn Physics, PhysicsContext<'_, D>),
+    ) {
+        let Particles {
+            position,
+            mass,
+            volume0,
+            deformation_gradient,
+            stress,
+            shared,
+            ..
+        } = &mut self.particles;
+        for slot in &mut self.physics {
+            let ctx = PhysicsContext {
+                dt,
+                time,
+                grid: &self.grid,
+                interpolation: &self.interpolation,
+                particles: ParticleView {
+                    position,
+                    mass,
+                    volume0,
+                    deformation_gradient,
+                    stress,
+                    groups: &self.group_views,
+                },
+                fields: shared,
+                scratch: &mut slot.scratch,
+                report: &mut self.report,
+            };
+            visit(slot.physics.as_ref(), ctx);
+        }
+    }
+
+    /// Runs one stage of every physics operator, in order.
+    pub(super) fn physics_stage(&mut self, stage: Stage, dt: f64) {
+        self.each_physics(dt, self.time + dt, |physics, ctx| {
+            <dyn Material as DimensionDispatch<D>>::physics_stage(physics, stage, ctx)
+        });
+    }
+
+    /// The smallest stable step of the physics operators (infinite for implicit ones).
+    pub(super) fn compute_physics_dt(&mut self) -> f64 {
+        let mut dt = f64::INFINITY;
+        self.each_physics(0.0, self.time, |physics, ctx| {
+            dt = dt.min(<dyn Material as DimensionDispatch<D>>::physics_stable_dt(
+                physics, ctx,
+            ));
+        });
+        dt
+    }
+
+    /// Advances every physics operator by `dt` (between the kinematic and the stress
+    /// update); `moved`: particles moved since the stencils were built.
+    pub(super) fn advance_physics(&mut self, dt: f64, moved: bool) {
+        if self.physics.is_empty() {
+            return;
+        }
+        if self.needs_interpolation && (moved || self.interpolation.node.is_empty()) {
+            build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+        }
+        for stage in [Stage::Prepare, Stage::Advance, Stage::Finish] {
+            self.physics_stage(stage, dt);
+        }
+        self.physics_dt = self.compute_physics_dt();
+    }
+
+    /// Stress update of every material (none with mechanics off).
+    pub(super) fn update_stresses(&mut self, dt: f64) {
+        if self.settings.mechanics != Mechanics::Off {
+            self.stresses = update_stress(&mut self.particles, dt, &mut self.stress_scratch);
+            self.boundary_work += self.stresses.free_strain_work;
+        }
+    }
+
+    pub(super) fn inertia(&self) -> f64 {
+        K::APIC_INERTIA.unwrap_or(0.25)
+    }
+
+    pub(super) fn p2g(&mut self, dt: f64, mass: bool, force: ForceTerm) {
+        let params = P2gParams {
+            dt,
+            mass,
+            force,
+            force_apart: self.settings.transfer == Transfer::Flip,
+            affine: self.settings.transfer == Transfer::Apic,
+            inertia: self.inertia(),
+            gravity: self.settings.gravity,
+        };
+        particle_to_grid::<D, K>(&mut self.grid, &self.particles, &self.bins, params);
+    }
+
+    pub(super) fn grid_update(&mut self, dt: f64, forces: bool) {
+        let work = self.grid_update_work(dt, forces);
+        if forces {
+            self.boundary_work += work;
+        }
+    }
+
+    pub(super) fn grid_update_work(&mut self, dt: f64, forces: bool) -> f64 {
+        let params = GridParams {
+            dt,
+            forces,
+            flip: forces && self.settings.transfer == Transfer::Flip,
+            damping: self.settings.damping,
+            time: self.relax_time.unwrap_or(self.time + dt),
+        };
+        update_grid(&mut self.grid, &self.boundaries, params)
+    }
+
+    pub(super) fn g2p(&mut self, dt: f64, velocity: bool, position: bool, deformation: bool) {
+        let params = G2pParams {
+            dt,
+            transfer: self.settings.transfer,
+            flip_blend: self.settings.flip_blend,
+            velocity,
+            position,
+            deformation,
+            gradient_from_affine: self.settings.mls && velocity && deformation,
+            gravity: self.settings.gravity,
+        };
+        let stats = grid_to_particle::<D, K>(&self.grid, &mut self.particles, params);
+        if velocity {
+            self.kinematics = stats;
+        } else {
+            // A pass that did not change velocities still reports F and position checks.
+            self.kinematics.min_det_f = stats.min_det_f;
+            self.kinematics.min_det_particle = stats.min_det_particle;
+            self.kinematics.non_finite =
+                ParticleFault::first(self.kinematics.non_finite, stats.non_finite);
+            self.kinematics.escaped = ParticleFault::first(self.kinematics.escaped, stats.escaped);
+            self.kinematics.gravity_energy = stats.gravity_energy;
+        }
+    }
+
+    /// F-bar: averages J over the grid before the stress update (when the scene asks).
+    /// `moved`: particles moved since the bins were built, so rebuild them.
+    pub(super) fn average_volume(&mut self, moved: bool, dt: f64) {
+        if let Some(average) = &mut self.volume_average {
+            if moved {
+                self.bins.rebuild::<D, K>(&self.grid, &self.particles);
+            }
+            average.apply::<D, K>(&self.grid, &mut self.particles, &self.bins, dt);
+        }
+    }
+
+    /// Advances one step of size `dt` with the scene's time-integration mode.
+    pub fn step(&mut self, dt: f64) {
+        if let Some(mut mode) = self.mode.take() {
+            mode.advance(self, dt);
+            self.mode = Some(mode);
+        }
+        self.time += dt;
+        self.steps += 1;
+    }
+
+    /// The stress and statistics of the initial state (F = I), before the first step; the
+    /// physics operators set their initial fields.
+    pub(super) fn initialise(&mut self) {
+        if !self.physics.is_empty() {
+            if self.needs_interpolation {
+                build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+            }
+            for stage in [Stage::Initialise, Stage::Prepare, Stage::Finish] {
+                self.physics_stage(stage, 0.0);
+            }
+            self.physics_dt = self.compute_physics_dt();
+        }
+        self.update_stresses(0.0);
+        self.boundary_work = 0.0;
+        self.kinematics = measure(&self.particles, self.settings.gravity);
+    }
+}

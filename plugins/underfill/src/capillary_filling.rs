@@ -1,0 +1,411 @@
+//! Capillary filling of a parallel-plate gap (Washburn/Lucas law): the closed form and the
+//! reference that compares the measured liquid front and fill time with it.
+
+use mpm_core::output::Comparison;
+use mpm_core::reference::{
+    Frame, Reference, ReferenceFactory, ReferenceLaw, RelativeL2, TypedReferenceFactory, compare,
+};
+use mpm_core::scene::{Issue, Scene};
+use mpm_core::section::Checks;
+use serde::Deserialize;
+use std::sync::Arc;
+
+/// Capillary filling of a parallel-plate gap from a reservoir (Washburn/Lucas law): the
+/// front is `x = √(h σ cosθ t / (3μ))` from the entrance, held at `length` once the gap
+/// is full (fill time `3μL²/(hσ cosθ)`). The measured front is `length × (liquid volume /
+/// gap volume)` from the shared particle field `fill` of the particles in the gap; error:
+/// relative L2 error of the front over the output frames after t = 0. The comparison
+/// `fill_time` appears once the front reached the end.
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CapillaryFillingParams {
+    /// Axis along the gap (the flow direction).
+    pub axis: usize,
+    /// Coordinate of the gap's entrance along the axis (where the reservoir is).
+    pub entrance: f64,
+    /// Length of the gap along the axis, m.
+    pub length: f64,
+    /// Height of the gap between the plates, m.
+    pub gap: f64,
+    /// Surface tension of the liquid, N/m.
+    pub surface_tension: f64,
+    /// Contact angle of the liquid on the plates, degrees, 0 <= θ < 90 (wetting).
+    pub contact_angle: f64,
+    /// Dynamic viscosity of the liquid, Pa s.
+    pub viscosity: f64,
+}
+
+/// The front error accumulated over frames, and the front history until the gap filled.
+#[derive(Clone, Debug)]
+struct CapillaryFilling {
+    p: CapillaryFillingParams,
+    error: RelativeL2,
+    measured: Option<f64>,
+    expected: Option<f64>,
+    /// Time and measured front of every frame observed so far, until the front reached
+    /// the end.
+    fronts: Vec<(f64, f64)>,
+    comparisons: Vec<Comparison>,
+}
+
+impl ReferenceLaw for CapillaryFilling {
+    fn kind(&self) -> &'static str {
+        "relative L2 error of the liquid front position over frames (capillary filling between plates, x² = hσcosθ t/(3μ))"
+    }
+
+    fn observe<const D: usize>(&mut self, frame: Frame<'_, D>) {
+        let particles = frame.particles;
+        let Some(fill) = particles.shared.get("fill") else {
+            return;
+        };
+        let p = self.p;
+        let (mut liquid, mut total) = (0.0, 0.0);
+        for (f, v) in fill.iter().zip(&particles.volume0) {
+            liquid += f * v;
+            total += v;
+        }
+        let front = p.length * liquid / total.max(1e-300);
+        let t_fill = capillary_fill_time(
+            p.length,
+            p.gap,
+            p.surface_tension,
+            p.contact_angle,
+            p.viscosity,
+        );
+        self.observe_front(frame.time, front, p.length, t_fill);
+        if frame.time <= 0.0 {
+            return;
+        }
+        let exact = capillary_front(
+            frame.time,
+            p.length,
+            p.gap,
+            p.surface_tension,
+            p.contact_angle,
+            p.viscosity,
+        );
+        self.error.add((front - exact).powi(2), exact * exact);
+        self.measured = Some(front);
+        self.expected = Some(exact);
+    }
+
+    fn error(&self) -> Option<f64> {
+        self.error.value()
+    }
+
+    fn expected(&self) -> Option<f64> {
+        self.expected
+    }
+
+    fn measured(&self) -> Option<f64> {
+        self.measured
+    }
+
+    fn comparisons(&self) -> Vec<Comparison> {
+        self.comparisons.clone()
+    }
+}
+
+impl CapillaryFilling {
+    /// Records one frame's capillary front and, the first time it reaches the end of the gap,
+    /// the comparison `fill_time`.
+    ///
+    /// Under the law x² grows linearly in time, and the measured front stops at the end of
+    /// the gap, so the frame that reached the end says only that the gap filled before it.
+    /// The fill time is where the chord of x² through the last two frames before it reaches
+    /// `length²` (kept between those frames), or with a single frame before it, where the
+    /// chord from that frame to the full one does.
+    fn observe_front(&mut self, time: f64, front: f64, length: f64, reference: f64) {
+        let full = length * (1.0 - 1e-6);
+        if self.fronts.last().is_some_and(|&(_, x)| x >= full) {
+            return;
+        }
+        self.fronts.push((time, front));
+        if front < full {
+            return;
+        }
+        let k = self.fronts.len() - 1;
+        if k == 0 {
+            // Full at the first frame observed: when it filled is unknown.
+            return;
+        }
+        let target = length * length;
+        let (t_b, _) = self.fronts[k];
+        let (t_a, x_a) = self.fronts[k - 1];
+        let chord = |(t0, x0): (f64, f64), (t1, x1): (f64, f64)| {
+            let slope = (x1 * x1 - x0 * x0) / (t1 - t0);
+            (slope > 0.0 && slope.is_finite()).then(|| t1 + (target - x1 * x1) / slope)
+        };
+        let before = (k >= 2)
+            .then(|| chord(self.fronts[k - 2], (t_a, x_a)))
+            .flatten()
+            .map(|t| t.max(t_a).min(t_b));
+        let Some(measured) = before.or_else(|| chord((t_a, x_a), self.fronts[k])) else {
+            return;
+        };
+        self.comparisons
+            .push(compare("fill_time", measured, reference));
+    }
+}
+
+/// The problems of a `capillary_filling` section in a `dimension`-D scene.
+fn check(p: &CapillaryFillingParams, path: &str, dimension: usize) -> Result<(), Vec<Issue>> {
+    let mut c = Checks::new(path);
+    c.axis("axis", p.axis, dimension);
+    c.finite("entrance", p.entrance);
+    c.positive("length", p.length);
+    c.positive("gap", p.gap);
+    c.positive("surface_tension", p.surface_tension);
+    if !(p.contact_angle >= 0.0 && p.contact_angle < 90.0) {
+        c.error(
+            "contact_angle",
+            format!(
+                "must be at least 0 and below 90 degrees (a wetting liquid; got {})",
+                p.contact_angle
+            ),
+        );
+    }
+    c.positive("viscosity", p.viscosity);
+    c.finish()
+}
+
+fn build(
+    p: CapillaryFillingParams,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Reference>, Vec<Issue>> {
+    check(&p, path, scene.dimension as usize)?;
+    Ok(Arc::new(CapillaryFilling {
+        p,
+        error: RelativeL2::default(),
+        measured: None,
+        expected: None,
+        fronts: Vec::new(),
+        comparisons: Vec::new(),
+    }))
+}
+
+/// The `capillary_filling` reference type.
+pub fn factory() -> Box<dyn ReferenceFactory> {
+    Box::new(TypedReferenceFactory::new("capillary_filling", build))
+}
+
+/// Liquid front of capillary filling between parallel plates (Washburn/Lucas law): the
+/// distance `√(h σ cosθ t / (3μ))` from the entrance at time `t`, held at `length` once the
+/// gap is full; `contact_angle` in degrees.
+pub fn capillary_front(
+    t: f64,
+    length: f64,
+    gap: f64,
+    surface_tension: f64,
+    contact_angle: f64,
+    viscosity: f64,
+) -> f64 {
+    if t <= 0.0 {
+        return 0.0;
+    }
+    let cos = contact_angle.to_radians().cos();
+    (gap * surface_tension * cos * t / (3.0 * viscosity))
+        .sqrt()
+        .min(length)
+}
+
+/// Time capillary filling between parallel plates takes to reach `length` (see
+/// [`capillary_front`]): `3 μ L² / (h σ cosθ)`; `contact_angle` in degrees.
+pub fn capillary_fill_time(
+    length: f64,
+    gap: f64,
+    surface_tension: f64,
+    contact_angle: f64,
+    viscosity: f64,
+) -> f64 {
+    3.0 * viscosity * length * length / (gap * surface_tension * contact_angle.to_radians().cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mpm_core::particles::Particles;
+    use mpm_core::reference::test_particles;
+    use mpm_core::scene::test_scene;
+
+    fn settings(overrides: serde_json::Value) -> serde_json::Value {
+        let mut r = serde_json::json!({
+            "type": "capillary_filling", "axis": 0, "entrance": 0.0, "length": 5e-3,
+            "gap": 5e-5, "surface_tension": 0.03, "contact_angle": 30.0, "viscosity": 2.0
+        });
+        for (k, v) in overrides.as_object().expect("an object") {
+            r[k] = v.clone();
+        }
+        r
+    }
+
+    /// The issues the factory finds with a reference given as JSON, in a `dim`-D scene.
+    fn issues(dim: usize, json: serde_json::Value) -> Vec<(String, String)> {
+        match factory().build(&json, "reference", &test_scene(dim)) {
+            Ok(_) => Vec::new(),
+            Err(issues) => issues.into_iter().map(|i| (i.path, i.message)).collect(),
+        }
+    }
+
+    #[test]
+    fn capillary_filling_reference_checks_name_their_json_paths() {
+        assert!(issues(2, settings(serde_json::json!({}))).is_empty());
+        assert!(issues(3, settings(serde_json::json!({"axis": 2}))).is_empty());
+        assert!(issues(2, settings(serde_json::json!({"contact_angle": 0.0}))).is_empty());
+        let cases = [
+            (serde_json::json!({"axis": 2}), "reference.axis", "below 2"),
+            (
+                serde_json::json!({"length": 0.0}),
+                "reference.length",
+                "> 0",
+            ),
+            (serde_json::json!({"gap": -1e-5}), "reference.gap", "> 0"),
+            (
+                serde_json::json!({"surface_tension": 0.0}),
+                "reference.surface_tension",
+                "> 0",
+            ),
+            (
+                serde_json::json!({"contact_angle": 90.0}),
+                "reference.contact_angle",
+                "below 90",
+            ),
+            (
+                serde_json::json!({"contact_angle": -1.0}),
+                "reference.contact_angle",
+                "at least 0",
+            ),
+            (
+                serde_json::json!({"viscosity": -2.0}),
+                "reference.viscosity",
+                "> 0",
+            ),
+        ];
+        for (overrides, path, words) in cases {
+            let found = issues(2, settings(overrides));
+            assert_eq!(found.len(), 1, "{found:?}");
+            assert_eq!(found[0].0, path, "{found:?}");
+            assert!(found[0].1.contains(words), "{found:?}");
+        }
+        // Non-finite numbers cannot be written in JSON; check the typed value directly.
+        let typed = CapillaryFillingParams {
+            axis: 0,
+            entrance: f64::NAN,
+            length: f64::INFINITY,
+            gap: 5e-5,
+            surface_tension: 0.03,
+            contact_angle: f64::NAN,
+            viscosity: 2.0,
+        };
+        let found = check(&typed, "reference", 2).unwrap_err();
+        let paths: Vec<&str> = found.iter().map(|i| i.path.as_str()).collect();
+        assert_eq!(
+            paths,
+            [
+                "reference.entrance",
+                "reference.length",
+                "reference.contact_angle"
+            ]
+        );
+    }
+
+    /// A fresh tracker of a 4 mm gap, 50 µm high, μ = 2 Pa s, fully wetting.
+    fn capillary() -> Box<dyn Reference> {
+        let json = serde_json::json!({
+            "type": "capillary_filling", "axis": 0, "entrance": 0.0, "length": 4e-3,
+            "gap": 5e-5, "surface_tension": 0.03, "contact_angle": 0.0, "viscosity": 2.0
+        });
+        factory()
+            .build(&json, "reference", &test_scene(2))
+            .expect("a valid reference")
+            .start()
+    }
+
+    fn frame(p: &Particles<2>, time: f64, last: bool) -> Frame<'_, 2> {
+        Frame {
+            particles: p,
+            time,
+            last,
+        }
+    }
+
+    /// Sets the fill of four equal-volume particles so the measured front is `front` of
+    /// `length` (the first particles full, the next one partly).
+    fn set_front(p: &mut Particles<2>, front: f64, length: f64) {
+        let fill = p.shared.get_mut("fill").unwrap();
+        let filled = 4.0 * front / length;
+        for (i, f) in fill.iter_mut().enumerate() {
+            *f = (filled - i as f64).clamp(0.0, 1.0);
+        }
+    }
+
+    #[test]
+    fn capillary_filling_tracks_the_front_and_the_fill_time() {
+        let (length, t_fill) = (4e-3, capillary_fill_time(4e-3, 5e-5, 0.03, 0.0, 2.0));
+        let mut p = test_particles(&[[0.0; 2]; 4], &[1.0, 1.0, 1.0, 1.0], &["fill"]);
+        let mut r = capillary();
+        // Frames every t_fill/8, the front following the law exactly (held at the end).
+        for k in 0..=12 {
+            let t = k as f64 * t_fill / 8.0;
+            set_front(&mut p, length * (t / t_fill).sqrt().min(1.0), length);
+            r.observe_2d(frame(&p, t, k == 12));
+            if k < 8 {
+                assert!(r.comparisons().is_empty(), "{k}");
+            }
+        }
+        assert!(r.error().unwrap() < 1e-12, "{:?}", r.error());
+        assert_eq!(r.measured(), Some(length));
+        assert!((r.expected().unwrap() - length).abs() < 1e-12 * length);
+        let c = r.comparisons();
+        assert_eq!(c.len(), 1);
+        assert_eq!(c[0].quantity, "fill_time");
+        assert!((c[0].reference - t_fill).abs() < 1e-12 * t_fill);
+        assert!(c[0].relative_difference.abs() < 1e-9, "{:?}", c[0]);
+
+        // Filling between frames (at 7.5 of 8 frame intervals): the frame after says only
+        // "full"; the chord of the frames before still finds the fill time.
+        let mut r = capillary();
+        let slow = t_fill * 8.0 / 7.5;
+        for k in 0..=10 {
+            let t = k as f64 * t_fill / 8.0;
+            set_front(&mut p, length * (t / slow).sqrt().min(1.0), length);
+            r.observe_2d(frame(&p, t, k == 10));
+        }
+        let c = r.comparisons();
+        assert_eq!(c.len(), 1);
+        assert!((c[0].measured - slow).abs() < 1e-9 * slow, "{:?}", c[0]);
+        // The front lags the law, and the error says by how much.
+        assert!(r.error().unwrap() > 0.01);
+    }
+
+    #[test]
+    fn capillary_filling_without_reaching_the_end_has_no_fill_time() {
+        let t_fill = capillary_fill_time(4e-3, 5e-5, 0.03, 0.0, 2.0);
+        let mut p = test_particles(&[[0.0; 2]; 4], &[1.0, 1.0, 1.0, 1.0], &["fill"]);
+        let mut r = capillary();
+        r.observe_2d(frame(&p, 0.0, false));
+        assert!(r.error().is_none());
+        // A front at half the exact one: relative L2 error 0.5.
+        set_front(&mut p, 0.5 * 4e-3 * 0.5f64.sqrt(), 4e-3);
+        r.observe_2d(frame(&p, 0.5 * t_fill, true));
+        assert!((r.error().unwrap() - 0.5).abs() < 1e-12);
+        assert!(r.comparisons().is_empty());
+    }
+
+    #[test]
+    fn capillary_front_reaches_the_end_at_the_fill_time() {
+        let (length, gap, sigma, theta, mu) = (5e-3, 50e-6, 0.03, 30.0, 2.0);
+        let t_fill = capillary_fill_time(length, gap, sigma, theta, mu);
+        // 3 μ L² / (h σ cos 30°) = 3·2·25e-6 / (50e-6·0.03·0.8660254) = 115.47 s.
+        assert!((t_fill - 115.470_053_837_925_15).abs() < 1e-9, "{t_fill}");
+        let front = |t| capillary_front(t, length, gap, sigma, theta, mu);
+        assert!((front(t_fill) - length).abs() < 1e-12 * length);
+        // x² grows linearly in time: a quarter of the fill time reaches half the length.
+        assert!((front(0.25 * t_fill) - 0.5 * length).abs() < 1e-12 * length);
+        assert_eq!(front(2.0 * t_fill), length);
+        assert_eq!(front(0.0), 0.0);
+        // A wetting angle closer to 90° pulls more weakly.
+        assert!(capillary_fill_time(length, gap, sigma, 60.0, mu) > t_fill);
+    }
+}
