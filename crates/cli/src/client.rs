@@ -75,7 +75,7 @@ pub fn submit(remote: &Remote, scene: &Path, overrides: &[String]) -> anyhow::Re
     let mut value: Value = serde_json::from_str(&text)
         .with_context(|| format!("`{}` is not valid JSON", scene.display()))?;
     for o in overrides {
-        crate::apply_override(&mut value, o)?;
+        crate::overrides::apply_override(&mut value, o)?;
     }
     let r = remote
         .request(reqwest::Method::POST, "/v1/jobs")?

@@ -1,12 +1,13 @@
 //! The subcommands of `mpm`.
 
-use crate::overrides::apply_override;
+use crate::exit_status::ExitStatus;
 use crate::progress::ProgressReporter;
+use crate::scene_file::{load_scene, report_load_error};
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use mpm_core::output::{Metrics, Outcome};
 use mpm_core::plugin::Registry;
-use mpm_core::scene::{SceneError, ValidatedScene, parse_scene_value};
+use mpm_core::scene::ValidatedScene;
 use mpm_core::solver::{RunError, run_scene};
 use std::path::{Path, PathBuf};
 
@@ -225,71 +226,6 @@ impl RemoteArgs {
         crate::client::Remote {
             server: self.server.clone(),
             token: self.token.clone(),
-        }
-    }
-}
-
-/// How `mpm` exits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ExitStatus {
-    /// Done.
-    Success,
-    /// An operational failure (files, store).
-    Failure,
-    /// Bad input: an invalid scene or option; nothing was written.
-    InvalidInput,
-    /// The run stopped on a check (NaN, det F <= 0, ...); frames written so far are kept.
-    Stopped,
-}
-
-impl From<ExitStatus> for std::process::ExitCode {
-    fn from(s: ExitStatus) -> Self {
-        std::process::ExitCode::from(match s {
-            ExitStatus::Success => 0,
-            ExitStatus::Failure => 1,
-            ExitStatus::InvalidInput => 2,
-            ExitStatus::Stopped => 3,
-        })
-    }
-}
-
-/// A scene file that failed to load: unreadable, or invalid.
-#[derive(Debug)]
-pub enum LoadError {
-    /// Could not read the file.
-    Io(anyhow::Error),
-    /// The scene is invalid.
-    Invalid(SceneError),
-}
-
-/// Reads, overrides and validates a scene file.
-pub fn load_scene(
-    path: &Path,
-    overrides: &[String],
-    registry: &Registry,
-) -> Result<ValidatedScene, LoadError> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read scene file `{}`", path.display()))
-        .map_err(LoadError::Io)?;
-    let mut value: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| LoadError::Invalid(SceneError::single("$", format!("not valid JSON: {e}"))))?;
-    for o in overrides {
-        apply_override(&mut value, o)
-            .map_err(|e| LoadError::Invalid(SceneError::single("--set", format!("{e:#}"))))?;
-    }
-    let base = path.parent().unwrap_or(Path::new("."));
-    parse_scene_value(value, registry, base).map_err(LoadError::Invalid)
-}
-
-fn report_load_error(path: &Path, e: LoadError) -> ExitStatus {
-    match e {
-        LoadError::Io(e) => {
-            eprintln!("error: {e:#}");
-            ExitStatus::InvalidInput
-        }
-        LoadError::Invalid(e) => {
-            eprintln!("error: {}: {e}", path.display());
-            ExitStatus::InvalidInput
         }
     }
 }

@@ -3,16 +3,20 @@
 
 mod client;
 mod commands;
+mod exit_status;
 mod overrides;
 mod plot;
 mod progress;
 mod render;
 pub mod rom;
+mod scene_file;
 pub mod stability;
 pub mod study;
 
-pub use commands::{Cli, Command, ExitStatus, LoadError, load_scene, run_cli};
+pub use commands::{Cli, Command, run_cli};
+pub use exit_status::ExitStatus;
 pub use overrides::apply_override;
+pub use scene_file::{LoadError, load_scene};
 
 use mpm_core::plugin::Registry;
 

@@ -2,8 +2,9 @@
 //! error against a full-order run, and sweep samples and latent sizes (error against wall
 //! time per simulated second, with the full-order run as a line).
 
-use crate::commands::{ExitStatus, LoadError, load_scene};
+use crate::exit_status::ExitStatus;
 use crate::progress::ProgressReporter;
+use crate::scene_file::{load_scene, report_load_error};
 use anyhow::{Context, anyhow};
 use clap::{Subcommand, ValueEnum};
 use mpm_core::output::{Metrics, Outcome};
@@ -187,13 +188,7 @@ fn load(
     set: &[String],
     registry: &Registry,
 ) -> Result<mpm_core::scene::ValidatedScene, ExitStatus> {
-    load_scene(scene, set, registry).map_err(|e| {
-        match e {
-            LoadError::Io(e) => eprintln!("error: {e:#}"),
-            LoadError::Invalid(e) => eprintln!("error: {}: {e}", scene.display()),
-        }
-        ExitStatus::InvalidInput
-    })
+    load_scene(scene, set, registry).map_err(|e| report_load_error(scene, e))
 }
 
 /// Runs `mpm rom ...`.

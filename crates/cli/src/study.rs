@@ -1,5 +1,6 @@
 //! `mpm study`: run a scene over a sweep of settings and put error against run time.
 
+use crate::scene_file::{LoadError, load_scene};
 use anyhow::{Context, bail};
 use mpm_core::output::Outcome;
 use mpm_core::plugin::Registry;
@@ -164,10 +165,10 @@ pub fn run_local(
 }
 
 fn run_one(scene: &Path, sets: &[String], labels: Labels, registry: &Registry) -> StudyRow {
-    let validated = match crate::load_scene(scene, sets, registry) {
+    let validated = match load_scene(scene, sets, registry) {
         Ok(v) => v,
-        Err(crate::LoadError::Invalid(e)) => return failed_row(labels, "invalid", e.to_string()),
-        Err(crate::LoadError::Io(e)) => return failed_row(labels, "failed", format!("{e:#}")),
+        Err(LoadError::Invalid(e)) => return failed_row(labels, "invalid", e.to_string()),
+        Err(LoadError::Io(e)) => return failed_row(labels, "failed", format!("{e:#}")),
     };
     let result = mpm_core::solver::run_scene(
         &validated,
