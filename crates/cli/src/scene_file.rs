@@ -41,7 +41,7 @@ pub(crate) fn report_load_error(path: &Path, e: LoadError) -> ExitStatus {
     match e {
         LoadError::Io(e) => {
             eprintln!("error: {e:#}");
-            ExitStatus::InvalidInput
+            ExitStatus::Failure
         }
         LoadError::Invalid(e) => {
             eprintln!("error: {}: {e}", path.display());
