@@ -1,5 +1,6 @@
 //! The `mpm` client of the job service: submit, status, list, cancel, fetch, plugins.
 
+use crate::exit_status::input_error;
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use reqwest::blocking::{Client, RequestBuilder, Response};
@@ -35,6 +36,8 @@ impl Remote {
     }
 
     /// Sends a request; a non-success answer becomes an error worded as the server worded it.
+    /// A 4xx answer (an invalid scene, an unknown job, a bad token) is invalid input (exit 2),
+    /// except 408 and 429 (a timeout, a full queue), which are worth retrying (exit 1).
     fn send(&self, r: RequestBuilder) -> anyhow::Result<Response> {
         let response = r
             .send()
@@ -58,6 +61,10 @@ impl Remote {
                 );
             }
         }
+        let code = status.as_u16();
+        if status.is_client_error() && code != 408 && code != 429 {
+            return Err(input_error!("{text}"));
+        }
         bail!(text)
     }
 
@@ -73,9 +80,10 @@ pub fn submit(remote: &Remote, scene: &Path, overrides: &[String]) -> anyhow::Re
     let text = std::fs::read_to_string(scene)
         .with_context(|| format!("cannot read scene file `{}`", scene.display()))?;
     let mut value: Value = serde_json::from_str(&text)
-        .with_context(|| format!("`{}` is not valid JSON", scene.display()))?;
+        .map_err(|e| input_error!("{}: $: not valid JSON: {e}", scene.display()))?;
     for o in overrides {
-        crate::apply_override(&mut value, o)?;
+        crate::overrides::apply_override(&mut value, o)
+            .map_err(|e| input_error!("{}: --set: {e:#}", scene.display()))?;
     }
     let r = remote
         .request(reqwest::Method::POST, "/v1/jobs")?
@@ -171,7 +179,8 @@ pub fn fetch(remote: &Remote, id: &str, out: &Path) -> anyhow::Result<std::path:
             .bytes()?;
         let path = target.join(rel);
         if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent)?;
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating {}", parent.display()))?;
         }
         std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
     }

@@ -1,12 +1,14 @@
 //! The subcommands of `mpm`.
 
-use crate::overrides::apply_override;
+use crate::exit_status::{ExitStatus, input_error};
 use crate::progress::ProgressReporter;
+use crate::scene_file::{load_scene, report_load_error};
+use crate::stdout::{out, outln};
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use mpm_core::output::{Metrics, Outcome};
 use mpm_core::plugin::Registry;
-use mpm_core::scene::{SceneError, ValidatedScene, parse_scene_value};
+use mpm_core::scene::ValidatedScene;
 use mpm_core::solver::{RunError, run_scene};
 use std::path::{Path, PathBuf};
 
@@ -229,71 +231,6 @@ impl RemoteArgs {
     }
 }
 
-/// How `mpm` exits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ExitStatus {
-    /// Done.
-    Success,
-    /// An operational failure (files, store).
-    Failure,
-    /// Bad input: an invalid scene or option; nothing was written.
-    InvalidInput,
-    /// The run stopped on a check (NaN, det F <= 0, ...); frames written so far are kept.
-    Stopped,
-}
-
-impl From<ExitStatus> for std::process::ExitCode {
-    fn from(s: ExitStatus) -> Self {
-        std::process::ExitCode::from(match s {
-            ExitStatus::Success => 0,
-            ExitStatus::Failure => 1,
-            ExitStatus::InvalidInput => 2,
-            ExitStatus::Stopped => 3,
-        })
-    }
-}
-
-/// A scene file that failed to load: unreadable, or invalid.
-#[derive(Debug)]
-pub enum LoadError {
-    /// Could not read the file.
-    Io(anyhow::Error),
-    /// The scene is invalid.
-    Invalid(SceneError),
-}
-
-/// Reads, overrides and validates a scene file.
-pub fn load_scene(
-    path: &Path,
-    overrides: &[String],
-    registry: &Registry,
-) -> Result<ValidatedScene, LoadError> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read scene file `{}`", path.display()))
-        .map_err(LoadError::Io)?;
-    let mut value: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| LoadError::Invalid(SceneError::single("$", format!("not valid JSON: {e}"))))?;
-    for o in overrides {
-        apply_override(&mut value, o)
-            .map_err(|e| LoadError::Invalid(SceneError::single("--set", format!("{e:#}"))))?;
-    }
-    let base = path.parent().unwrap_or(Path::new("."));
-    parse_scene_value(value, registry, base).map_err(LoadError::Invalid)
-}
-
-fn report_load_error(path: &Path, e: LoadError) -> ExitStatus {
-    match e {
-        LoadError::Io(e) => {
-            eprintln!("error: {e:#}");
-            ExitStatus::InvalidInput
-        }
-        LoadError::Invalid(e) => {
-            eprintln!("error: {}: {e}", path.display());
-            ExitStatus::InvalidInput
-        }
-    }
-}
-
 /// Runs a parsed command line.
 pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
     let registry = std::sync::Arc::new(registry);
@@ -310,14 +247,14 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                     eprintln!("error: {}: {e}", scene.display());
                     return Ok(ExitStatus::InvalidInput);
                 }
-                println!(
+                outln!(
                     "{}: valid ({}D, {} particles in {} bodies, {} material(s))",
                     scene.display(),
                     v.scene.dimension,
                     v.particle_count(),
                     v.scene.bodies.len(),
                     v.materials.len()
-                );
+                )?;
                 Ok(ExitStatus::Success)
             }
             Err(e) => Ok(report_load_error(&scene, e)),
@@ -347,9 +284,9 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 Err(e) => return Err(e.into()),
             };
             if json {
-                println!("{}", serde_json::to_string_pretty(&metrics)?);
+                outln!("{}", serde_json::to_string_pretty(&metrics)?)?;
             } else {
-                print_summary(&validated, &metrics, &store);
+                print_summary(&validated, &metrics, &store)?;
             }
             Ok(match metrics.outcome {
                 Some(Outcome::Finished) => ExitStatus::Success,
@@ -359,7 +296,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         Command::Rom { command } => crate::rom::run(command, &registry),
         Command::Export { store, vtk } => {
             let pvd = mpm_io::export_vtk(&store, &vtk)?;
-            println!("wrote {}", pvd.display());
+            outln!("wrote {}", pvd.display())?;
             Ok(ExitStatus::Success)
         }
         Command::Render {
@@ -384,7 +321,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 .voids
                 .map(|n| format!(", {n} voids marked"))
                 .unwrap_or_default();
-            println!(
+            outln!(
                 "wrote {} (frame {}, t = {} s, {} particles, {} from {} to {}{voids})",
                 out.display(),
                 r.frame,
@@ -393,14 +330,14 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 r.label,
                 crate::render::short(r.range.0),
                 crate::render::short(r.range.1),
-            );
+            )?;
             Ok(ExitStatus::Success)
         }
         Command::Schema => {
-            println!(
+            outln!(
                 "{}",
                 serde_json::to_string_pretty(&crate::scene_schema(&registry))?
-            );
+            )?;
             Ok(ExitStatus::Success)
         }
         Command::Plugins {
@@ -411,15 +348,15 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             let remote = crate::client::Remote { server, token };
             let answer = crate::client::plugins(&remote)?;
             for p in answer["plugins"].as_array().into_iter().flatten() {
-                println!(
+                outln!(
                     "{}: {}",
                     p["name"].as_str().unwrap_or("?"),
                     p["description"].as_str().unwrap_or("")
-                );
+                )?;
                 for (material, schema) in p["materials"].as_object().into_iter().flatten() {
-                    println!("  material `{material}`");
+                    outln!("  material `{material}`")?;
                     if schemas {
-                        println!("{}", serde_json::to_string_pretty(schema)?);
+                        outln!("{}", serde_json::to_string_pretty(schema)?)?;
                     }
                 }
             }
@@ -455,20 +392,31 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             Ok(ExitStatus::Success)
         }
         Command::CheckStability { only, json } => {
-            let mut results = Vec::new();
-            for case in crate::stability::cases() {
-                if only.as_deref().is_some_and(|o| !case.name.contains(o)) {
-                    continue;
-                }
-                eprintln!("{}: {}", case.name, case.what);
-                results.push(crate::stability::run_case(&case, &registry));
+            let all = crate::stability::cases();
+            let names: Vec<&str> = all.iter().map(|c| c.name).collect();
+            let chosen: Vec<_> = all
+                .iter()
+                .filter(|c| only.as_deref().is_none_or(|o| c.name.contains(o)))
+                .collect();
+            if chosen.is_empty() {
+                return Err(input_error!(
+                    "--only {}: no stability case has that in its name; the cases are {}",
+                    only.as_deref().unwrap_or(""),
+                    names.join(", ")
+                ));
             }
-            print!("{}", crate::stability::table(&results));
+            let mut results = Vec::new();
+            for case in chosen {
+                eprintln!("{}: {}", case.name, case.what);
+                results.push(crate::stability::run_case(case, &registry));
+            }
+            out!("{}", crate::stability::table(&results))?;
             if let Some(path) = json {
-                std::fs::write(&path, serde_json::to_string_pretty(&results)?)?;
+                std::fs::write(&path, serde_json::to_string_pretty(&results)?)
+                    .with_context(|| format!("cannot write `{}`", path.display()))?;
             }
             let failed = results.iter().filter(|r| !r.pass).count();
-            println!("{} passed, {failed} failed", results.len() - failed);
+            outln!("{} passed, {failed} failed", results.len() - failed)?;
             Ok(if failed == 0 {
                 ExitStatus::Success
             } else {
@@ -486,7 +434,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             let text = std::fs::read_to_string(&scene)
                 .with_context(|| format!("cannot read scene file `{}`", scene.display()))?;
             let value: serde_json::Value = serde_json::from_str(&text)
-                .with_context(|| format!("`{}` is not valid JSON", scene.display()))?;
+                .map_err(|e| input_error!("{}: $: not valid JSON: {e}", scene.display()))?;
             let bodies = value["bodies"].as_array().map_or(0, |b| b.len());
             let vars = vary
                 .iter()
@@ -503,6 +451,16 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 }
                 None => crate::study::run_local(&scene, &vars, &registry, parallel, report),
             };
+            if rows.iter().all(|r| r.outcome == "invalid") {
+                // Nothing ran: the scene is invalid under every setting. Say why, write nothing.
+                let mut messages: Vec<&str> =
+                    rows.iter().filter_map(|r| r.message.as_deref()).collect();
+                messages.dedup();
+                for m in messages {
+                    eprintln!("error: {}: {m}", scene.display());
+                }
+                return Ok(ExitStatus::InvalidInput);
+            }
             let dir = out.unwrap_or_else(|| crate::study::default_dir(&scene));
             crate::study::write_tables(&dir, &vars, &rows)?;
             let title = format!(
@@ -510,13 +468,13 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 value["name"].as_str().unwrap_or("study")
             );
             crate::plot::draw(&dir, &title, &rows)?;
-            print!("{}", crate::study::table(&vars, &rows));
+            out!("{}", crate::study::table(&vars, &rows))?;
             for (name, group) in crate::study::series(&rows) {
                 if let Some(order) = crate::study::observed_order(&group) {
-                    println!("observed order {order:.2}: {name}");
+                    outln!("observed order {order:.2}: {name}")?;
                 }
             }
-            println!("wrote {}/study.{{csv,json,png,svg}}", dir.display());
+            outln!("wrote {}/study.{{csv,json,png,svg}}", dir.display())?;
             Ok(ExitStatus::Success)
         }
         Command::Submit {
@@ -528,56 +486,59 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             let remote = remote.remote();
             let job = crate::client::submit(&remote, &scene, &set)?;
             let id = job["id"].as_str().unwrap_or("?").to_string();
-            println!("submitted job {id}");
+            outln!("submitted job {id}")?;
             if !wait {
                 return Ok(ExitStatus::Success);
             }
             let job = crate::client::wait(&remote, &id, false)?;
-            println!("status {}", job["status"].as_str().unwrap_or("?"));
-            println!("{}", serde_json::to_string_pretty(&job["metrics"])?);
+            outln!("status {}", job["status"].as_str().unwrap_or("?"))?;
+            outln!("{}", serde_json::to_string_pretty(&job["metrics"])?)?;
             if !job["failure"].is_null() {
-                println!("failure {}", job["failure"]);
+                outln!("failure {}", job["failure"])?;
             }
             Ok(match job["status"].as_str() {
                 Some("succeeded") => ExitStatus::Success,
-                _ => ExitStatus::Stopped,
+                _ if job["metrics"]["outcome"] == "stopped" => ExitStatus::Stopped,
+                // Cancelled, or failed for a reason of the server's (the scene was validated
+                // when it was submitted).
+                _ => ExitStatus::Failure,
             })
         }
         Command::Status { id, remote } => {
             let job = crate::client::status(&remote.remote(), &id)?;
-            println!("{}", serde_json::to_string_pretty(&job)?);
+            outln!("{}", serde_json::to_string_pretty(&job)?)?;
             Ok(ExitStatus::Success)
         }
         Command::List { status, remote } => {
             let answer = crate::client::list(&remote.remote(), status.as_deref())?;
             for job in answer["jobs"].as_array().into_iter().flatten() {
-                println!("{}", crate::client::job_line(job));
+                outln!("{}", crate::client::job_line(job))?;
             }
             Ok(ExitStatus::Success)
         }
         Command::Cancel { id, remote } => {
             let job = crate::client::cancel(&remote.remote(), &id)?;
-            println!("job {} is {}", id, job["status"].as_str().unwrap_or("?"));
+            outln!("job {} is {}", id, job["status"].as_str().unwrap_or("?"))?;
             Ok(ExitStatus::Success)
         }
         Command::Fetch { id, out, remote } => {
             let path = crate::client::fetch(&remote.remote(), &id, &out)?;
-            println!("fetched {}", path.display());
+            outln!("fetched {}", path.display())?;
             Ok(ExitStatus::Success)
         }
         Command::Plugins { schemas, .. } => {
             for plugin in registry.plugins() {
-                println!("{}: {}", plugin.name(), plugin.description());
+                outln!("{}: {}", plugin.name(), plugin.description())?;
                 for (material, schema) in registry.materials_of(plugin.name()) {
-                    println!("  material `{material}`");
+                    outln!("  material `{material}`")?;
                     if schemas {
-                        println!("{}", serde_json::to_string_pretty(&schema)?);
+                        outln!("{}", serde_json::to_string_pretty(&schema)?)?;
                     }
                 }
                 for (physics, schema) in registry.physics_of(plugin.name()) {
-                    println!("  physics `{physics}`");
+                    outln!("  physics `{physics}`")?;
                     if schemas {
-                        println!("{}", serde_json::to_string_pretty(&schema)?);
+                        outln!("{}", serde_json::to_string_pretty(&schema)?)?;
                     }
                 }
             }
@@ -586,9 +547,9 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
     }
 }
 
-fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) {
+fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) -> anyhow::Result<()> {
     let s = &v.scene;
-    println!(
+    outln!(
         "scene          {} ({}D, {:?} kernel, {:?}{}, {:?})",
         s.name,
         s.dimension,
@@ -596,49 +557,57 @@ fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) {
         s.solver.transfer,
         if s.solver.mls { " + MLS" } else { "" },
         s.solver.scheme
-    );
-    println!("outcome        {:?}", m.outcome.unwrap_or(Outcome::Stopped));
+    )?;
+    outln!("outcome        {:?}", m.outcome.unwrap_or(Outcome::Stopped))?;
     if let Some(d) = &m.diagnostic {
         let particle = d
             .particle
             .map(|p| format!(", particle {p}"))
             .unwrap_or_default();
-        println!(
+        outln!(
             "diagnostic     step {}, t = {:.6e} s{particle}, {} = {:.6e}: {}",
-            d.step, d.time, d.field, d.value, d.message
-        );
+            d.step,
+            d.time,
+            d.field,
+            d.value,
+            d.message
+        )?;
     }
-    println!("particles      {}", m.particles);
-    println!(
+    outln!("particles      {}", m.particles)?;
+    outln!(
         "steps          {} to t = {:.6e} s",
-        m.steps, m.simulated_time
-    );
-    println!(
+        m.steps,
+        m.simulated_time
+    )?;
+    outln!(
         "wall time      {:.3} s on {} threads",
-        m.wall_seconds, m.threads
-    );
-    println!(
+        m.wall_seconds,
+        m.threads
+    )?;
+    outln!(
         "speed          {:.3e} particle-steps/s",
         m.particle_steps_per_second
-    );
-    println!(
+    )?;
+    outln!(
         "memory         {:.0} bytes/particle, grid {:.1} MB",
         m.bytes_per_particle,
         m.grid_bytes as f64 / 1e6
-    );
-    println!(
+    )?;
+    outln!(
         "energy drift   {:+.3e} (max |drift| {:.3e})",
-        m.energy_drift, m.max_energy_drift
-    );
-    println!("min det F      {:.6}", m.min_det_f);
+        m.energy_drift,
+        m.max_energy_drift
+    )?;
+    outln!("min det F      {:.6}", m.min_det_f)?;
     if let Some(e) = m.error {
-        println!(
+        outln!(
             "error          {e:.4e}  ({})",
             m.error_kind.as_deref().unwrap_or("")
-        );
+        )?;
         if let (Some(r), Some(x)) = (m.reference_value, m.measured_value) {
-            println!("               reference {r:.6e}, measured {x:.6e}");
+            outln!("               reference {r:.6e}, measured {x:.6e}")?;
         }
     }
-    println!("results        {} ({} frames)", store.display(), m.frames);
+    outln!("results        {} ({} frames)", store.display(), m.frames)?;
+    Ok(())
 }

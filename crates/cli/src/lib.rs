@@ -3,16 +3,21 @@
 
 mod client;
 mod commands;
+mod exit_status;
 mod overrides;
 mod plot;
 mod progress;
 mod render;
 pub mod rom;
+mod scene_file;
 pub mod stability;
+mod stdout;
 pub mod study;
 
-pub use commands::{Cli, Command, ExitStatus, LoadError, load_scene, run_cli};
+pub use commands::{Cli, Command, run_cli};
+pub use exit_status::ExitStatus;
 pub use overrides::apply_override;
+pub use scene_file::{LoadError, load_scene};
 
 use mpm_core::plugin::Registry;
 
@@ -75,15 +80,18 @@ pub fn scene_schema(registry: &Registry) -> serde_json::Value {
     schema
 }
 
-/// Parses the command line, runs it with `registry`, and returns the process exit code.
+/// Parses the command line, runs it with `registry`, and returns the process exit code:
+/// the README's table (2 for invalid input, 1 for other failures), 141 quietly when stdout
+/// was closed by its reader.
 pub fn main_with(registry: Registry) -> std::process::ExitCode {
     use clap::Parser;
     let cli = Cli::parse();
     match run_cli(cli, registry) {
         Ok(status) => status.into(),
+        Err(e) if stdout::is_closed(&e) => std::process::ExitCode::from(stdout::CLOSED_EXIT_CODE),
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitStatus::Failure.into()
+            ExitStatus::of_error(&e).into()
         }
     }
 }

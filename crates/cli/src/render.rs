@@ -2,6 +2,7 @@
 //! by a field (equal axes, a viridis colour bar), for documentation pictures; optionally
 //! with the voids of a table in the store's metrics marked as red circles.
 
+use crate::exit_status::input_error;
 use anyhow::{Context, anyhow, bail};
 use mpm_io::ResultStore;
 use plotters::prelude::*;
@@ -54,35 +55,35 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
     if !is_png {
-        bail!(
+        return Err(input_error!(
             "--out `{}`: the picture is written as PNG; give a file name ending in .png",
             args.out.display()
-        );
+        ));
     }
     let store = ResultStore::open(&args.store)
         .with_context(|| format!("cannot open result store `{}`", args.store.display()))?;
     let dim = store.dimension();
     if dim != 2 {
-        bail!(
+        return Err(input_error!(
             "render draws 2D stores only; `{}` holds a {dim}D run",
             args.store.display()
-        );
+        ));
     }
     let fields = store.fields()?;
     if !fields.contains(&args.field) {
-        bail!(
+        return Err(input_error!(
             "field `{}` is not in `{}`; available fields: {}",
             args.field,
             args.store.display(),
             fields.join(", ")
-        );
+        ));
     }
     if !fields.iter().any(|f| f == "x") {
-        bail!(
+        return Err(input_error!(
             "`{}` stores no particle positions (field `x`); available fields: {}",
             args.store.display(),
             fields.join(", ")
-        );
+        ));
     }
     let times = store.times()?;
     let k = resolve_frame(args.frame, times.len() as u64)?;
@@ -99,11 +100,11 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         );
     }
     if args.component >= components {
-        bail!(
+        return Err(input_error!(
             "field `{}` has {components} component(s) per particle (shape {:?}); --component must be below {components}",
             args.field,
             &shape[1..]
-        );
+        ));
     }
     let label = if components > 1 {
         format!("{}[{}]", args.field, args.component)
@@ -200,15 +201,15 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
 /// of `count` frames.
 fn resolve_frame(frame: Option<i64>, count: u64) -> anyhow::Result<u64> {
     if count == 0 {
-        bail!("the store has no frames");
+        return Err(input_error!("the store has no frames"));
     }
     let k = frame.unwrap_or(-1);
     let index = if k < 0 { count as i64 + k } else { k };
     if index < 0 || index >= count as i64 {
-        bail!(
+        return Err(input_error!(
             "frame {k} is out of range: the store has {count} frame(s), 0 to {} (or -{count} to -1 from the end)",
             count - 1
-        );
+        ));
     }
     Ok(index as u64)
 }

@@ -2,8 +2,10 @@
 //! error against a full-order run, and sweep samples and latent sizes (error against wall
 //! time per simulated second, with the full-order run as a line).
 
-use crate::commands::{ExitStatus, LoadError, load_scene};
+use crate::exit_status::ExitStatus;
 use crate::progress::ProgressReporter;
+use crate::scene_file::{load_scene, report_load_error};
+use crate::stdout::outln;
 use anyhow::{Context, anyhow};
 use clap::{Subcommand, ValueEnum};
 use mpm_core::output::{Metrics, Outcome};
@@ -187,13 +189,7 @@ fn load(
     set: &[String],
     registry: &Registry,
 ) -> Result<mpm_core::scene::ValidatedScene, ExitStatus> {
-    load_scene(scene, set, registry).map_err(|e| {
-        match e {
-            LoadError::Io(e) => eprintln!("error: {e:#}"),
-            LoadError::Invalid(e) => eprintln!("error: {}: {e}", scene.display()),
-        }
-        ExitStatus::InvalidInput
-    })
+    load_scene(scene, set, registry).map_err(|e| report_load_error(scene, e))
 }
 
 /// Runs `mpm rom ...`.
@@ -221,7 +217,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 return report(e);
             }
             let t = &model.info.training;
-            println!(
+            outln!(
                 "wrote {} ({:?}, latent {}, {} snapshots of {} particles; POD captures {:.6}; \
                  training misfit {:.3e} of the RMS displacement; {:.1} s)",
                 out.display(),
@@ -232,7 +228,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 t.pod_captured,
                 t.fit_error,
                 t.seconds
-            );
+            )?;
             Ok(ExitStatus::Success)
         }
         RomCommand::Run {
@@ -268,15 +264,15 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 None => None,
             };
             if json {
-                println!(
+                outln!(
                     "{}",
                     serde_json::to_string_pretty(&serde_json::json!({
                         "metrics": metrics,
                         "error": error,
                     }))?
-                );
+                )?;
             } else {
-                print_run(&metrics, &store, error.as_ref());
+                print_run(&metrics, &store, error.as_ref())?;
             }
             Ok(match metrics.outcome {
                 Some(Outcome::Finished) => ExitStatus::Success,
@@ -293,13 +289,17 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 Err(e) => return report(e),
             };
             if json {
-                println!("{}", serde_json::to_string_pretty(&e)?);
+                outln!("{}", serde_json::to_string_pretty(&e)?)?;
             } else {
-                println!(
+                outln!(
                     "relative position error {:.4e} (relative to the displacement {:.4e}; \
                      largest particle distance {:.3e} m) over {} frames × {} particles",
-                    e.relative, e.relative_to_displacement, e.max_distance, e.frames, e.particles
-                );
+                    e.relative,
+                    e.relative_to_displacement,
+                    e.max_distance,
+                    e.frames,
+                    e.particles
+                )?;
             }
             Ok(ExitStatus::Success)
         }
@@ -321,9 +321,9 @@ fn run_one(
     result
 }
 
-fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) {
+fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow::Result<()> {
     let get = |k: &str| m.physics.get(k).copied().unwrap_or(f64::NAN);
-    println!(
+    outln!(
         "{:?}: {} steps to t = {} s in {:.3} s ({:.3} s per simulated second); {} particles \
          written; {} samples, latent {}, {:.0} quadrature particles per step (of {} candidates)",
         m.outcome.unwrap_or(Outcome::Finished),
@@ -336,21 +336,25 @@ fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) {
         get("rom.latent"),
         get("rom.quadrature_points"),
         get("rom.candidates"),
-    );
+    )?;
     if let Some(d) = &m.diagnostic {
-        println!(
+        outln!(
             "stopped at step {} (t = {} s): {}",
-            d.step, d.time, d.message
-        );
+            d.step,
+            d.time,
+            d.message
+        )?;
     }
     if let Some(e) = error {
-        println!(
+        outln!(
             "position error against the full-order run: {:.4e} (relative to the displacement \
              {:.4e})",
-            e.relative, e.relative_to_displacement
-        );
+            e.relative,
+            e.relative_to_displacement
+        )?;
     }
-    println!("wrote {}", store.display());
+    outln!("wrote {}", store.display())?;
+    Ok(())
 }
 
 /// Settings of `mpm rom study`.
@@ -485,7 +489,7 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
                     outcome: format!("failed: {e}"),
                 },
             };
-            println!(
+            outln!(
                 "latent {:>3}  samples {:>5}  {:>9.3} s/sim-s  speed-up {:>7.2}  error {:>10}  \
                  (to displacement {:>10})  {}",
                 row.latent,
@@ -495,11 +499,11 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
                 fmt(row.error),
                 fmt(row.error_to_displacement),
                 row.outcome
-            );
+            )?;
             rows.push(row);
         }
     }
-    println!("full-order run: {full_rate:.3} s per simulated second");
+    outln!("full-order run: {full_rate:.3} s per simulated second")?;
     write_study(&dir, &rows, full_rate)?;
     draw_study(
         &dir.join("rom-study.png"),
@@ -510,10 +514,10 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
         &rows,
         full_rate,
     )?;
-    println!(
+    outln!(
         "wrote {0}/rom-study.csv, {0}/rom-study.json, {0}/rom-study.png",
         dir.display()
-    );
+    )?;
     Ok(ExitStatus::Success)
 }
 

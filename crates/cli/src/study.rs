@@ -1,6 +1,8 @@
 //! `mpm study`: run a scene over a sweep of settings and put error against run time.
 
-use anyhow::{Context, bail};
+use crate::exit_status::{ExitStatus, input_error};
+use crate::scene_file::{LoadError, load_scene};
+use anyhow::Context;
 use mpm_core::output::Outcome;
 use mpm_core::plugin::Registry;
 use serde::Serialize;
@@ -39,10 +41,10 @@ fn alias(key: &str, bodies: usize) -> Vec<String> {
 pub fn parse_variation(text: &str, bodies: usize) -> anyhow::Result<Variation> {
     let (key, values) = text
         .split_once('=')
-        .with_context(|| format!("`{text}`: expected KEY=VALUE1,VALUE2,..."))?;
+        .ok_or_else(|| input_error!("--vary `{text}`: expected KEY=VALUE1,VALUE2,..."))?;
     let values: Vec<String> = values.split(',').map(|v| v.trim().to_string()).collect();
     if key.is_empty() || values.iter().any(String::is_empty) {
-        bail!("`{text}`: empty key or value");
+        return Err(input_error!("--vary `{text}`: empty key or value"));
     }
     Ok(Variation {
         key: key.to_string(),
@@ -164,10 +166,10 @@ pub fn run_local(
 }
 
 fn run_one(scene: &Path, sets: &[String], labels: Labels, registry: &Registry) -> StudyRow {
-    let validated = match crate::load_scene(scene, sets, registry) {
+    let validated = match load_scene(scene, sets, registry) {
         Ok(v) => v,
-        Err(crate::LoadError::Invalid(e)) => return failed_row(labels, "invalid", e.to_string()),
-        Err(crate::LoadError::Io(e)) => return failed_row(labels, "failed", format!("{e:#}")),
+        Err(LoadError::Invalid(e)) => return failed_row(labels, "invalid", e.to_string()),
+        Err(LoadError::Io(e)) => return failed_row(labels, "failed", format!("{e:#}")),
     };
     let result = mpm_core::solver::run_scene(
         &validated,
@@ -200,7 +202,12 @@ pub fn run_remote(
         progress(i, total, &labels);
         match crate::client::submit(remote, scene, &sets) {
             Ok(job) => submitted.push((labels, Ok(job["id"].as_str().unwrap_or("").to_string()))),
-            Err(e) => submitted.push((labels, Err(format!("{e:#}")))),
+            // The server refused this combination's scene: a row, and on to the next.
+            Err(e) if ExitStatus::of_error(&e) == ExitStatus::InvalidInput => {
+                submitted.push((labels, Err(format!("{e:#}"))))
+            }
+            // Unreadable scene, unreachable server: no use trying the other combinations.
+            Err(e) => return Err(e),
         }
     }
     let mut rows = Vec::new();
