@@ -91,9 +91,10 @@ pub enum Command {
     },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
-    /// List the registered plugins and their material types (of a server with --server).
+    /// List the registered plugins with their materials, physics sections and references,
+    /// and the core's references (of a server with --server).
     Plugins {
-        /// Print every material's JSON Schema too.
+        /// Print every section's JSON Schema too.
         #[arg(long)]
         schemas: bool,
         /// Ask this server instead of listing the local ones.
@@ -336,30 +337,20 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         Command::Schema => {
             outln!(
                 "{}",
-                serde_json::to_string_pretty(&crate::scene_schema(&registry))?
+                serde_json::to_string_pretty(&crate::schema::scene_schema(&registry))?
             )?;
             Ok(ExitStatus::Success)
         }
         Command::Plugins {
-            server: Some(server),
-            token,
             schemas,
+            server,
+            token,
         } => {
-            let remote = crate::client::Remote { server, token };
-            let answer = crate::client::plugins(&remote)?;
-            for p in answer["plugins"].as_array().into_iter().flatten() {
-                outln!(
-                    "{}: {}",
-                    p["name"].as_str().unwrap_or("?"),
-                    p["description"].as_str().unwrap_or("")
-                )?;
-                for (material, schema) in p["materials"].as_object().into_iter().flatten() {
-                    outln!("  material `{material}`")?;
-                    if schemas {
-                        outln!("{}", serde_json::to_string_pretty(schema)?)?;
-                    }
-                }
-            }
+            let catalogue = match server {
+                Some(server) => crate::client::plugins(&crate::client::Remote { server, token })?,
+                None => registry.catalogue(),
+            };
+            print_catalogue(&catalogue, schemas)?;
             Ok(ExitStatus::Success)
         }
         Command::Serve {
@@ -526,25 +517,44 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             outln!("fetched {}", path.display())?;
             Ok(ExitStatus::Success)
         }
-        Command::Plugins { schemas, .. } => {
-            for plugin in registry.plugins() {
-                outln!("{}: {}", plugin.name(), plugin.description())?;
-                for (material, schema) in registry.materials_of(plugin.name()) {
-                    outln!("  material `{material}`")?;
-                    if schemas {
-                        outln!("{}", serde_json::to_string_pretty(&schema)?)?;
-                    }
-                }
-                for (physics, schema) in registry.physics_of(plugin.name()) {
-                    outln!("  physics `{physics}`")?;
-                    if schemas {
-                        outln!("{}", serde_json::to_string_pretty(&schema)?)?;
-                    }
+    }
+}
+
+/// Prints a plugin catalogue (see `Registry::catalogue`): each plugin with its materials,
+/// physics sections and references, then the core's references; `schemas`: with each
+/// section's JSON Schema.
+fn print_catalogue(catalogue: &serde_json::Value, schemas: bool) -> anyhow::Result<()> {
+    let print_sections = |owner: &serde_json::Value| -> anyhow::Result<()> {
+        for (kind, key) in [
+            ("material", "materials"),
+            ("physics", "physics"),
+            ("reference", "references"),
+        ] {
+            for (name, schema) in owner[key].as_object().into_iter().flatten() {
+                outln!("  {kind} `{name}`")?;
+                if schemas {
+                    outln!("{}", serde_json::to_string_pretty(schema)?)?;
                 }
             }
-            Ok(ExitStatus::Success)
         }
+        Ok(())
+    };
+    for p in catalogue["plugins"].as_array().into_iter().flatten() {
+        outln!(
+            "{}: {}",
+            p["name"].as_str().unwrap_or("?"),
+            p["description"].as_str().unwrap_or("")
+        )?;
+        print_sections(p)?;
     }
+    if catalogue["core"]["references"]
+        .as_object()
+        .is_some_and(|r| !r.is_empty())
+    {
+        outln!("core: the mechanics references of the solver itself")?;
+        print_sections(&catalogue["core"])?;
+    }
+    Ok(())
 }
 
 fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) -> anyhow::Result<()> {

@@ -10,6 +10,7 @@ mod progress;
 mod render;
 pub mod rom;
 mod scene_file;
+mod schema;
 pub mod stability;
 mod stdout;
 pub mod study;
@@ -18,6 +19,7 @@ pub use commands::{Cli, Command, run_cli};
 pub use exit_status::ExitStatus;
 pub use overrides::apply_override;
 pub use scene_file::{LoadError, load_scene};
+pub use schema::scene_schema;
 
 use mpm_core::plugin::Registry;
 
@@ -42,42 +44,6 @@ pub fn default_registry() -> Registry {
         .expect("built-in plugins have distinct names");
     registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
     registry
-}
-
-/// The JSON Schema of a scene file, with the material, physics and reference sections of
-/// every registered plugin (and the core's references).
-pub fn scene_schema(registry: &Registry) -> serde_json::Value {
-    let mut schema = schemars::schema_for!(mpm_core::scene::Scene).to_value();
-    let materials: Vec<serde_json::Value> = registry
-        .material_types()
-        .map(|t| registry.material(t).expect("listed").schema())
-        .collect();
-    if let Some(slot) = schema.pointer_mut("/properties/materials") {
-        slot["additionalProperties"] = serde_json::json!({ "oneOf": materials });
-    }
-    let physics: serde_json::Map<String, serde_json::Value> = registry
-        .physics_names()
-        .map(|n| {
-            let (_, f) = registry.physics(n).expect("listed");
-            (n.to_string(), f.schema())
-        })
-        .collect();
-    if let Some(slot) = schema.pointer_mut("/properties/physics") {
-        slot["properties"] = serde_json::Value::Object(physics);
-        slot["additionalProperties"] = serde_json::json!(false);
-    }
-    let references: Vec<serde_json::Value> = registry
-        .reference_types()
-        .map(|t| registry.reference(t).expect("listed").schema())
-        .collect();
-    if let Some(slot) = schema.pointer_mut("/properties/reference") {
-        let description = slot.get("description").cloned();
-        *slot = serde_json::json!({ "oneOf": references });
-        if let Some(d) = description {
-            slot["description"] = d;
-        }
-    }
-    schema
 }
 
 /// Parses the command line, runs it with `registry`, and returns the process exit code:

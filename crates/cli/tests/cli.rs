@@ -332,3 +332,56 @@ fn stability_suite_outcomes_do_not_change() {
     }
     assert!(t.contains("0 failed"), "{t}");
 }
+
+#[test]
+fn references_are_listed_under_the_crate_that_owns_them_and_checked_by_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = mpm(&["plugins"], dir.path());
+    assert!(o.status.success(), "{}", text(&o));
+    let listing = String::from_utf8_lossy(&o.stdout).to_string();
+    // The reference a plugin registers is listed in that plugin's block: the lines after
+    // `owner: description` that are indented.
+    let block = |owner: &str| -> String {
+        let mut lines = listing
+            .lines()
+            .skip_while(|l| !l.starts_with(&format!("{owner}: ")));
+        lines
+            .next()
+            .unwrap_or_else(|| panic!("no `{owner}` block in:\n{listing}"));
+        lines
+            .take_while(|l| l.starts_with("  "))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert!(
+        block("johnson-cook").contains("reference `taylor_bar`"),
+        "{listing}"
+    );
+    assert!(
+        block("thermal").contains("reference `slab_temperature`"),
+        "{listing}"
+    );
+    assert!(
+        block("phase-change").contains("reference `stefan`"),
+        "{listing}"
+    );
+    assert!(
+        block("underfill").contains("reference `capillary_filling`"),
+        "{listing}"
+    );
+    assert!(
+        block("core").contains("reference `vibrating_bar`"),
+        "{listing}"
+    );
+
+    // An unknown reference type, and a bad value the owning plugin checks, name their paths.
+    let mut s = bar_json();
+    s["reference"]["type"] = json!("tuning_fork");
+    assert_rejected(s, "reference.type");
+    let mut s = bar_json();
+    s["reference"] = json!({
+        "type": "taylor_bar", "axis": 1, "wall": 0.0, "center": [0.0],
+        "final_length": -1.0, "mushroom_diameter": 0.01, "source": "test"
+    });
+    assert_rejected(s, "reference.final_length");
+}

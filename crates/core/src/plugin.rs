@@ -209,6 +209,34 @@ impl Registry {
         self.plugins.iter().map(|p| p.as_ref())
     }
 
+    /// Everything registered, with the JSON Schema of every section, as `GET /v1/plugins`
+    /// answers and `mpm plugins` prints it: `{plugins: [{name, description, materials,
+    /// physics, references}], core: {references}}`, sections keyed by name.
+    pub fn catalogue(&self) -> serde_json::Value {
+        let keyed = |sections: Vec<(&'static str, serde_json::Value)>| {
+            sections
+                .into_iter()
+                .map(|(name, schema)| (name.to_string(), schema))
+                .collect::<serde_json::Map<_, _>>()
+        };
+        let plugins: Vec<serde_json::Value> = self
+            .plugins()
+            .map(|p| {
+                serde_json::json!({
+                    "name": p.name(),
+                    "description": p.description(),
+                    "materials": keyed(self.materials_of(p.name())),
+                    "physics": keyed(self.physics_of(p.name())),
+                    "references": keyed(self.references_of(p.name())),
+                })
+            })
+            .collect();
+        serde_json::json!({
+            "plugins": plugins,
+            "core": { "references": keyed(self.references_of(CORE)) },
+        })
+    }
+
     /// Installs the reader used for bodies made from a result store.
     pub fn set_particle_store_reader(&mut self, reader: ParticleStoreReader) {
         self.store_reader = Some(reader);

@@ -87,24 +87,7 @@ async fn health() -> Json<serde_json::Value> {
 async fn plugins(
     axum::extract::State(state): axum::extract::State<Shared>,
 ) -> Json<serde_json::Value> {
-    let plugins: Vec<serde_json::Value> = state
-        .registry
-        .plugins()
-        .map(|p| {
-            let materials: serde_json::Map<String, serde_json::Value> = state
-                .registry
-                .materials_of(p.name())
-                .into_iter()
-                .map(|(name, schema)| (name.to_string(), schema))
-                .collect();
-            serde_json::json!({
-                "name": p.name(),
-                "description": p.description(),
-                "materials": materials,
-            })
-        })
-        .collect();
-    Json(serde_json::json!({ "plugins": plugins }))
+    Json(state.registry.catalogue())
 }
 
 /// Turns a body rejection (too large, unreadable) into a JSON error.

@@ -237,3 +237,49 @@ pub fn test_particles<const D: usize>(
         shared,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::plugin::{CORE, MaterialFactory, Plugin, Registry, RegistryError};
+    use crate::reference::ReferenceFactory;
+
+    /// A plugin that brings one reference of the core's under the same type name.
+    struct Clash;
+
+    impl Plugin for Clash {
+        fn name(&self) -> &'static str {
+            "clash"
+        }
+        fn description(&self) -> &'static str {
+            "brings a second `vibrating_bar`"
+        }
+        fn materials(&self) -> Vec<Box<dyn MaterialFactory>> {
+            Vec::new()
+        }
+        fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
+            vec![super::vibrating_bar::factory()]
+        }
+    }
+
+    #[test]
+    fn the_core_references_are_in_every_registry_and_cannot_be_claimed_twice() {
+        let mut registry = Registry::new();
+        let core: Vec<&str> = registry.reference_types().collect();
+        assert_eq!(
+            core,
+            ["cantilever_elastica", "poiseuille_startup", "vibrating_bar"]
+        );
+        assert_eq!(registry.references_of(CORE).len(), 3);
+        let catalogue = registry.catalogue();
+        assert!(catalogue["core"]["references"]["vibrating_bar"]["properties"]["axis"].is_object());
+        match registry.register(Box::new(Clash)) {
+            Err(RegistryError::DuplicateReference(name, first, second)) => {
+                assert_eq!(
+                    (name.as_str(), first.as_str(), second.as_str()),
+                    ("vibrating_bar", CORE, "clash")
+                );
+            }
+            other => panic!("expected a duplicate reference, got {:?}", other.err()),
+        }
+    }
+}
