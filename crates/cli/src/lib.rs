@@ -3,6 +3,7 @@
 
 mod client;
 mod commands;
+mod job;
 mod overrides;
 mod plot;
 mod progress;
