@@ -99,6 +99,12 @@ fn limits_name_the_estimate_and_can_be_changed() {
             "limit `frames`",
         ),
         ("solver.dt=1e-15", "solver.dt", "limit `steps`"),
+        // Found by the fuzz test: a wall thicker than the domain overflowed an index.
+        (
+            "domain.walls[0].thickness=100",
+            "domain.walls[0].thickness",
+            "do not fit",
+        ),
     ] {
         let o = mpm(&["validate", bar, "--set", set], dir.path());
         let t = text(&o);

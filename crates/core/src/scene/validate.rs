@@ -260,6 +260,23 @@ impl Validator {
             if w.thickness == 0 {
                 self.err(format!("{path}.thickness"), "must be at least 1");
             }
+            // The wall's node layers must fit in the domain (the solver's cell count).
+            let cells = |a: usize| ((d.max[a] - d.min[a]) / d.cell_size - 1e-9).ceil();
+            let sized = ok_min && ok_max && d.cell_size.is_finite() && d.cell_size > 0.0;
+            let axes = w.sides.iter().map(|s| s.axis_and_upper().0);
+            if let Some(a) = axes
+                .filter(|&a| a < self.dim && sized)
+                .find(|&a| f64::from(w.thickness) > cells(a) + 1.0 || !cells(a).is_finite())
+            {
+                self.err(
+                    format!("{path}.thickness"),
+                    format!(
+                        "{} layers do not fit in the domain's {} cells on axis {a}",
+                        w.thickness,
+                        cells(a)
+                    ),
+                );
+            }
             self.check_contact(&format!("{path}.condition"), w.condition);
         }
     }
