@@ -19,6 +19,10 @@ pub struct Cli {
     /// Worker threads (default: every core).
     #[arg(long, global = true, env = "MPM_THREADS")]
     pub threads: Option<usize>,
+    /// Raise or lower a bound on a scene's work, `NAME=N` (repeatable): particles,
+    /// grid_nodes, frames, store_bytes, file_bytes, steps, setup_tests.
+    #[arg(long = "limit", global = true, value_name = "NAME=N")]
+    pub limits: Vec<String>,
     /// The subcommand.
     #[command(subcommand)]
     pub command: Command,
@@ -164,7 +168,19 @@ pub enum Command {
         /// Most queued jobs.
         #[arg(long, default_value_t = 1000)]
         max_queued: usize,
+        /// Longest a submitted scene's validation may take, seconds (then 422).
+        #[arg(long, default_value_t = 10.0)]
+        validation_seconds: f64,
+        /// Validations at once (default: one per core).
+        #[arg(long)]
+        max_validations: Option<usize>,
+        /// Memory limit of each job's process, MB (default: half the machine's memory).
+        #[arg(long, default_value_t = 0)]
+        job_memory_mb: u64,
     },
+    /// Run one job of `mpm serve` in a process of its own (used by the service).
+    #[command(hide = true)]
+    RunJob(crate::job::RunJobArgs),
     /// Submit a scene to a server.
     Submit {
         /// Scene file (JSON).
@@ -235,6 +251,15 @@ impl RemoteArgs {
 /// Runs a parsed command line.
 pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
     let registry = std::sync::Arc::new(registry);
+    match crate::job::limits_from(&cli.limits) {
+        Ok(limits) => {
+            mpm_core::scene::Limits::set_current(limits);
+        }
+        Err(e) => {
+            eprintln!("error: --limit {e}");
+            return Ok(ExitStatus::InvalidInput);
+        }
+    }
     if let Some(threads) = cli.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -295,6 +320,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             })
         }
         Command::Rom { command } => crate::rom::run(command, &registry),
+        Command::RunJob(args) => Ok(crate::job::run(&args, &registry)),
         Command::Export { store, vtk } => {
             let pvd = mpm_io::export_vtk(&store, &vtk)?;
             outln!("wrote {}", pvd.display())?;
@@ -361,7 +387,12 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             max_body_bytes,
             max_particles,
             max_queued,
+            validation_seconds,
+            max_validations,
+            job_memory_mb,
         } => {
+            let limits = mpm_core::scene::Limits::current();
+            let defaults = mpm_service::Config::default();
             let config = mpm_service::Config {
                 listen,
                 data_dir: data,
@@ -370,6 +401,11 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 max_body_bytes,
                 max_particles,
                 max_queued,
+                limits,
+                validation_timeout: std::time::Duration::try_from_secs_f64(validation_seconds)
+                    .context("--validation-seconds must be a number of seconds >= 0")?,
+                max_validations: max_validations.unwrap_or(defaults.max_validations),
+                job_command: Some(crate::job::job_command(&limits, job_memory_mb)?),
             };
             let registry = registry.clone();
             let runtime = tokio::runtime::Builder::new_multi_thread()

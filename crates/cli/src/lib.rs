@@ -4,6 +4,7 @@
 mod client;
 mod commands;
 mod exit_status;
+mod job;
 mod overrides;
 mod plot;
 mod progress;

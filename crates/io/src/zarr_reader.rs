@@ -97,6 +97,20 @@ impl ResultStore {
         Ok(names)
     }
 
+    /// Particles of a field as its metadata states them (read before any frame is).
+    pub fn particle_count(&self, field: &str) -> Result<u64, IoError> {
+        let array = Array::open(self.store.clone(), &format!("/particles/{field}"))
+            .map_err(|e| zerr(&self.path, e))?;
+        let shape = array.shape();
+        if shape.len() < 2 || shape[2..].iter().any(|&c| c > 3) {
+            return Err(IoError::Layout {
+                path: self.path.display().to_string(),
+                message: format!("field `{field}` has the shape {shape:?}"),
+            });
+        }
+        Ok(shape[1])
+    }
+
     /// One frame of a field: its per-particle shape and values (particle-major).
     pub fn frame(&self, field: &str, frame: u64) -> Result<(Vec<u64>, Vec<f64>), IoError> {
         let array = Array::open(self.store.clone(), &format!("/particles/{field}"))
@@ -189,6 +203,15 @@ pub fn read_particles(
     let frames = store.frame_count().map_err(|e| e.to_string())?;
     if frames == 0 {
         return Err(format!("`{}` has no frames", path.display()));
+    }
+    // The store's own metadata says how much a frame holds: check it before reading one.
+    let count = store.particle_count("x").map_err(|e| e.to_string())?;
+    let limit = mpm_core::scene::Limits::current().max_particles;
+    if count > limit {
+        return Err(format!(
+            "`{}` holds {count} particles; at most {limit} are allowed (limit `particles`)",
+            path.display()
+        ));
     }
     let (_, positions) = store.frame("x", frames - 1).map_err(|e| e.to_string())?;
     let n = positions.len() / dim;

@@ -125,19 +125,11 @@ async fn submit(
             format!("the body is not valid JSON: {e}"),
         )
     })?;
-    let registry = state.registry.clone();
-    let data_dir = state.config.data_dir.clone();
-    let checked = tokio::task::spawn_blocking(move || check_scene(value, &registry, &data_dir))
-        .await
-        .map_err(ApiError::internal)??;
+    let checked = validate_within_budget(&state, value).await?;
     if checked.particles > state.config.max_particles {
-        return Err(ApiError::new(
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "too_many_particles",
-            format!(
-                "the scene has {} particles; this server accepts at most {}",
-                checked.particles, state.config.max_particles
-            ),
+        return Err(too_many_particles(
+            checked.particles.to_string(),
+            state.config.max_particles,
         ));
     }
     let id = uuid::Uuid::new_v4().to_string();
@@ -174,6 +166,61 @@ async fn submit(
     Ok(response)
 }
 
+/// 422 for a scene with more particles than the server accepts.
+fn too_many_particles(count: String, max: usize) -> ApiError {
+    ApiError::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "too_many_particles",
+        format!("the scene has {count} particles; this server accepts at most {max}"),
+    )
+}
+
+/// Validates a scene on a blocking thread, at most `max_validations` at once and within
+/// `validation_timeout` (waiting for a turn included). A validation past its budget keeps
+/// its permit until it ends, so stragglers cannot pile up.
+async fn validate_within_budget(
+    state: &Shared,
+    value: serde_json::Value,
+) -> Result<CheckedScene, ApiError> {
+    let budget = state.config.validation_timeout;
+    let deadline = tokio::time::Instant::now() + budget;
+    let permit = tokio::time::timeout_at(deadline, state.validations.clone().acquire_owned())
+        .await
+        .map_err(|_| {
+            ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "busy",
+                format!(
+                    "{} validations are running and none ended within the budget of {} s; try later",
+                    state.config.max_validations,
+                    budget.as_secs_f64()
+                ),
+            )
+        })?
+        .map_err(ApiError::internal)?;
+    let registry = state.registry.clone();
+    let data_dir = state.config.data_dir.clone();
+    let mut limits = state.config.limits;
+    limits.max_particles = limits.max_particles.min(state.config.max_particles as u64);
+    let max_particles = state.config.max_particles;
+    let task = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        check_scene(value, &registry, &data_dir, &limits, max_particles)
+    });
+    match tokio::time::timeout_at(deadline, task).await {
+        Ok(joined) => joined.map_err(ApiError::internal)?,
+        Err(_) => Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "validation_budget",
+            format!(
+                "validating the scene took longer than this server's budget of {} s; make it \
+                 smaller (fewer particles, holes or frames)",
+                budget.as_secs_f64()
+            ),
+        )),
+    }
+}
+
 struct CheckedScene {
     name: String,
     scene: String,
@@ -187,6 +234,8 @@ fn check_scene(
     value: serde_json::Value,
     registry: &mpm_core::plugin::Registry,
     data_dir: &std::path::Path,
+    limits: &mpm_core::scene::Limits,
+    max_particles: usize,
 ) -> Result<CheckedScene, ApiError> {
     let invalid = |problems: Vec<Problem>| {
         let mut e = ApiError::new(
@@ -211,7 +260,18 @@ fn check_scene(
             return Err(invalid(problems));
         }
     }
-    let validated = mpm_core::scene::parse_scene_value(value, registry, data_dir).map_err(|e| {
+    // The particle count is estimated from the shapes before any is generated.
+    if let Ok(scene) = mpm_core::scene::deserialize_at::<mpm_core::scene::Scene>(&value, "$") {
+        let estimate = mpm_core::scene::estimate(&scene).particles();
+        if estimate > max_particles as f64 {
+            return Err(too_many_particles(
+                format!("about {estimate:.3e} (estimated from its shapes)"),
+                max_particles,
+            ));
+        }
+    }
+    let validated = mpm_core::scene::parse_scene_value_limited(value, registry, data_dir, limits)
+        .map_err(|e| {
         invalid(
             e.issues
                 .into_iter()

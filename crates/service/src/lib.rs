@@ -4,12 +4,15 @@
 //! HTTP. Knows no physics: scenes are validated by the registry the binary passes in.
 
 mod api;
+mod child;
 mod db;
 mod error;
 mod worker;
 
 pub use api::ROUTES;
+pub use child::{JobCommand, default_job_memory, run_job_process};
 pub use error::ServiceError;
+pub use mpm_core::scene::Limits;
 
 use mpm_core::plugin::Registry;
 use std::net::SocketAddr;
@@ -33,6 +36,16 @@ pub struct Config {
     pub max_particles: usize,
     /// Most jobs waiting in the queue at once.
     pub max_queued: usize,
+    /// Bounds on a scene's work (grid, frames, store, ...), checked before anything is
+    /// generated; `max_particles` above applies too.
+    pub limits: Limits,
+    /// Longest a submitted scene's validation may take before the request gets a 422.
+    pub validation_timeout: std::time::Duration,
+    /// Validations running at once; further submissions wait (up to the timeout, then 503).
+    pub max_validations: usize,
+    /// Runs each job in a process of its own (see [`JobCommand`]); `None` runs jobs on a
+    /// thread of the service, where an abort or exhausted memory ends the service too.
+    pub job_command: Option<JobCommand>,
 }
 
 impl Default for Config {
@@ -45,6 +58,10 @@ impl Default for Config {
             max_body_bytes: 2 * 1024 * 1024,
             max_particles: 5_000_000,
             max_queued: 1000,
+            limits: Limits::default(),
+            validation_timeout: std::time::Duration::from_secs(10),
+            max_validations: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            job_command: None,
         }
     }
 }
@@ -55,6 +72,8 @@ pub(crate) struct State {
     pub registry: Arc<Registry>,
     pub db: sqlx::SqlitePool,
     pub jobs: worker::JobBoard,
+    /// Permits for validations running at once.
+    pub validations: Arc<tokio::sync::Semaphore>,
 }
 
 /// Runs the service until `shutdown` resolves. Prints `listening on http://ADDR` once the
@@ -75,6 +94,7 @@ pub async fn serve(
         registry,
         db,
         jobs: worker::JobBoard::default(),
+        validations: Arc::new(tokio::sync::Semaphore::new(config.max_validations.max(1))),
     });
     let listener = tokio::net::TcpListener::bind(config.listen)
         .await

@@ -1,8 +1,8 @@
 //! Workers: take queued jobs in order and run them with the solver on a blocking thread,
 //! reporting progress at a bounded rate and honouring cancellation within one step.
 
+use crate::child::ChildEnd;
 use crate::{State, db};
-use mpm_core::output::Outcome;
 use mpm_core::solver::{Control, Progress, RunError, run_scene};
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -90,11 +90,6 @@ pub async fn run(state: Arc<State>, mut stop: watch::Receiver<bool>) {
     }
 }
 
-enum Ended {
-    Metrics(Box<mpm_core::output::Metrics>),
-    Refused(String),
-}
-
 async fn run_job(state: &Arc<State>, id: String, scene: String) {
     let flag = state.jobs.register(&id);
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(u64, f64, f64)>();
@@ -109,20 +104,101 @@ async fn run_job(state: &Arc<State>, id: String, scene: String) {
             }
         })
     };
-    let store = results_path(state, &id);
+    let last = Arc::new(Mutex::new((0u64, 0.0f64, 0.0f64)));
+    let outcome = match &state.config.job_command {
+        Some(command) => {
+            let job_dir = results_path(state, &id)
+                .parent()
+                .map(PathBuf::from)
+                .unwrap_or_default();
+            crate::child::run_in_child(
+                command,
+                &job_dir,
+                &state.config.data_dir,
+                &scene,
+                flag.clone(),
+                tx,
+                last.clone(),
+            )
+            .await
+        }
+        None => run_in_process(state, &id, scene, flag.clone(), tx, last.clone()).await,
+    };
+    let _ = writer.await;
+    state.jobs.remove(&id);
+    let progress = *last.lock().expect("progress lock");
+    let failed =
+        |message: String| serde_json::to_string(&serde_json::json!({ "message": message })).ok();
+    let result = match outcome {
+        ChildEnd::Metrics(m) => {
+            let metrics = serde_json::to_string(&m).ok();
+            match m["outcome"].as_str() {
+                Some("finished") => {
+                    db::finish(&state.db, &id, "succeeded", metrics, None, Some(progress)).await
+                }
+                Some("cancelled") if state.jobs.shutting_down.load(Ordering::Relaxed) => {
+                    // Left `running`: the next start requeues it.
+                    Ok(())
+                }
+                Some("cancelled") => {
+                    db::finish(&state.db, &id, "cancelled", metrics, None, Some(progress)).await
+                }
+                _ => {
+                    let failure = serde_json::to_string(&serde_json::json!({
+                        "message": "the run stopped on a check",
+                        "diagnostic": m["diagnostic"],
+                    }))
+                    .ok();
+                    db::finish(&state.db, &id, "failed", metrics, failure, Some(progress)).await
+                }
+            }
+        }
+        ChildEnd::Refused(message) => {
+            db::finish(&state.db, &id, "failed", None, failed(message), None).await
+        }
+        ChildEnd::Crashed(_) if state.jobs.shutting_down.load(Ordering::Relaxed) => Ok(()),
+        ChildEnd::Crashed(message) => {
+            eprintln!("job {id}: {message}");
+            db::finish(
+                &state.db,
+                &id,
+                "failed",
+                None,
+                failed(message),
+                Some(progress),
+            )
+            .await
+        }
+    };
+    if let Err(e) = result {
+        eprintln!("job {id}: recording its end failed: {e}");
+    }
+}
+
+/// Runs a job on a blocking thread of this process (when no job command is configured): a
+/// panic fails the job, but an abort or exhausted memory takes the service down with it.
+async fn run_in_process(
+    state: &Arc<State>,
+    id: &str,
+    scene: String,
+    cancel: Arc<AtomicBool>,
+    tx: tokio::sync::mpsc::UnboundedSender<(u64, f64, f64)>,
+    last: Arc<Mutex<(u64, f64, f64)>>,
+) -> ChildEnd {
+    let store = results_path(state, id);
     let registry = state.registry.clone();
     let data_dir = state.config.data_dir.clone();
-    let cancel = flag.clone();
-    let last = Arc::new(Mutex::new((0u64, 0.0f64, 0.0f64)));
-    let last_in = last.clone();
-    let outcome = tokio::task::spawn_blocking(move || -> Ended {
+    let limits = state.config.limits;
+    let outcome = tokio::task::spawn_blocking(move || -> ChildEnd {
         let value: serde_json::Value = match serde_json::from_str(&scene) {
             Ok(v) => v,
-            Err(e) => return Ended::Refused(format!("stored scene is not JSON: {e}")),
+            Err(e) => return ChildEnd::Refused(format!("stored scene is not JSON: {e}")),
         };
-        let validated = match mpm_core::scene::parse_scene_value(value, &registry, &data_dir) {
+        let validated = match mpm_core::scene::parse_scene_value_limited(
+            value, &registry, &data_dir, &limits,
+        ) {
             Ok(v) => v,
-            Err(e) => return Ended::Refused(e.to_string()),
+            Err(e) => return ChildEnd::Refused(e.to_string()),
         };
         let mut sink = mpm_io::ZarrSink::new(&store);
         let mut next = Instant::now();
@@ -131,7 +207,7 @@ async fn run_job(state: &Arc<State>, id: String, scene: String) {
                 next = Instant::now() + PROGRESS_INTERVAL;
                 let _ = tx.send((p.step, p.time, p.wall_seconds));
             }
-            *last_in.lock().expect("progress lock") = (p.step, p.time, p.wall_seconds);
+            *last.lock().expect("progress lock") = (p.step, p.time, p.wall_seconds);
             if cancel.load(Ordering::Relaxed) {
                 Control::Cancel
             } else {
@@ -139,54 +215,15 @@ async fn run_job(state: &Arc<State>, id: String, scene: String) {
             }
         };
         match run_scene(&validated, &mut sink, &mut observer) {
-            Ok(m) => Ended::Metrics(Box::new(m)),
+            Ok(m) => ChildEnd::Metrics(serde_json::to_value(&m).unwrap_or_default()),
             Err(RunError::Refused { path, message }) => {
-                Ended::Refused(format!("{path}: {message}"))
+                ChildEnd::Refused(format!("{path}: {message}"))
             }
-            Err(e) => Ended::Refused(e.to_string()),
+            Err(e) => ChildEnd::Refused(e.to_string()),
         }
     })
     .await;
-    let _ = writer.await;
-    state.jobs.remove(&id);
-    let progress = *last.lock().expect("progress lock");
-    let result = match outcome {
-        Ok(Ended::Metrics(m)) => {
-            let metrics = serde_json::to_string(&m).ok();
-            match m.outcome {
-                Some(Outcome::Finished) => {
-                    db::finish(&state.db, &id, "succeeded", metrics, None, Some(progress)).await
-                }
-                Some(Outcome::Cancelled) if state.jobs.shutting_down.load(Ordering::Relaxed) => {
-                    // Left `running`: the next start requeues it.
-                    Ok(())
-                }
-                Some(Outcome::Cancelled) => {
-                    db::finish(&state.db, &id, "cancelled", metrics, None, Some(progress)).await
-                }
-                _ => {
-                    let failure = serde_json::to_string(&serde_json::json!({
-                        "message": "the run stopped on a check",
-                        "diagnostic": m.diagnostic,
-                    }))
-                    .ok();
-                    db::finish(&state.db, &id, "failed", metrics, failure, Some(progress)).await
-                }
-            }
-        }
-        Ok(Ended::Refused(message)) => {
-            let failure = serde_json::to_string(&serde_json::json!({ "message": message })).ok();
-            db::finish(&state.db, &id, "failed", None, failure, None).await
-        }
-        Err(panic) => {
-            let failure = serde_json::to_string(&serde_json::json!({
-                "message": format!("the solver failed unexpectedly: {panic}")
-            }))
-            .ok();
-            db::finish(&state.db, &id, "failed", None, failure, None).await
-        }
-    };
-    if let Err(e) = result {
-        eprintln!("job {id}: recording its end failed: {e}");
-    }
+    outcome.unwrap_or_else(|panic| {
+        ChildEnd::Crashed(format!("the solver failed unexpectedly: {panic}"))
+    })
 }

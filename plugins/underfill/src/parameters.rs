@@ -101,6 +101,9 @@ impl Fluid {
     }
 }
 
+/// Most bumps an array may have (flip-chip-underfill has 1,296).
+const MAX_BUMPS: f64 = 1e6;
+
 /// A square or staggered array of round bumps (solder joints) spanning the gap.
 #[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -342,6 +345,17 @@ impl UnderfillParameters {
                         "the array region needs max > min along each axis",
                     ));
                 }
+            }
+            // The bumps are listed before they are cut out of the cells: bound their count.
+            let count: f64 = (0..2).map(|a| (b.max[a] - b.min[a]) / b.pitch).product();
+            if count > MAX_BUMPS {
+                issues.push(Issue::new(
+                    format!("{bp}.pitch"),
+                    format!(
+                        "the array region would hold about {count:.3e} bumps at this pitch; at \
+                         most {MAX_BUMPS:e} are allowed"
+                    ),
+                ));
             }
         }
         if self.reservoirs.is_empty() {

@@ -4,12 +4,16 @@
 //! lies: JSON syntax (line and column), structure (unknown keys, wrong types; via
 //! `serde_path_to_error`), then physics and geometry checks in [`validate`].
 
+mod budget;
+mod lattice;
 mod types;
 mod validate;
 
+pub use budget::{Estimate, Limits, estimate};
 pub use types::*;
 pub use validate::{
-    BodyParticles, CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value, read_csv_particles,
+    BodyParticles, CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value,
+    parse_scene_value_limited, read_csv_particles,
 };
 
 use std::fmt;

@@ -1,6 +1,8 @@
 //! Checks a parsed scene against physics, geometry and the registered plugins, and generates
 //! the bodies' particles (so "zero particles" and "outside the domain" are caught up front).
 
+use super::budget::{self, Limits};
+use super::lattice::{self, Region};
 use super::{Issue, SceneError, deserialize_at, types::*};
 use crate::material::Material;
 use crate::physics::Physics;
@@ -70,11 +72,23 @@ pub fn parse_scene(
     parse_scene_value(value, registry, base_dir)
 }
 
-/// Validates a scene given as a JSON value (see [`parse_scene`]).
+/// Validates a scene given as a JSON value (see [`parse_scene`]) within this process's
+/// [`Limits::current`].
 pub fn parse_scene_value(
     value: serde_json::Value,
     registry: &Registry,
     base_dir: &Path,
+) -> Result<ValidatedScene, SceneError> {
+    parse_scene_value_limited(value, registry, base_dir, &Limits::current())
+}
+
+/// Validates a scene given as a JSON value, refusing one whose estimated work exceeds
+/// `limits` before any particle is generated.
+pub fn parse_scene_value_limited(
+    value: serde_json::Value,
+    registry: &Registry,
+    base_dir: &Path,
+    limits: &Limits,
 ) -> Result<ValidatedScene, SceneError> {
     if !value.is_object() {
         return Err(SceneError::single("$", "a scene must be a JSON object"));
@@ -87,6 +101,7 @@ pub fn parse_scene_value(
         dim: scene.dimension as usize,
     };
     v.check(&scene);
+    v.issues.extend(budget::check(&scene, limits));
     let reference = if v.dim == 2 || v.dim == 3 {
         v.build_reference(&scene, registry)
     } else {
@@ -100,6 +115,16 @@ pub fn parse_scene_value(
     } else {
         Vec::new()
     };
+    let count: usize = bodies.iter().map(|b| b.volumes.len()).sum();
+    if count as u64 > limits.max_particles {
+        v.err(
+            "bodies",
+            format!(
+                "the bodies hold {count} particles; at most {} are allowed (limit `particles`)",
+                limits.max_particles
+            ),
+        );
+    }
     if !v.issues.is_empty() {
         return Err(SceneError { issues: v.issues });
     }
@@ -213,7 +238,7 @@ impl Validator {
                 }
             }
             if d.cell_size > 0.0 && d.cell_size.is_finite() {
-                let mut nodes = 1f64;
+                // The grid's size is bounded in `budget`.
                 for a in 0..self.dim {
                     let cells = ((d.max[a] - d.min[a]) / d.cell_size).ceil();
                     if cells < 1.0 {
@@ -222,13 +247,6 @@ impl Validator {
                             format!("the domain must be at least one cell wide on axis {a}"),
                         );
                     }
-                    nodes *= cells + 1.0;
-                }
-                if nodes > 2.0e8 {
-                    self.err(
-                        "domain.cell_size",
-                        format!("the grid would have {nodes:.3e} nodes; at most 2e8 are allowed"),
-                    );
                 }
             }
         }
@@ -247,6 +265,23 @@ impl Validator {
             }
             if w.thickness == 0 {
                 self.err(format!("{path}.thickness"), "must be at least 1");
+            }
+            // The wall's node layers must fit in the domain (the solver's cell count).
+            let cells = |a: usize| ((d.max[a] - d.min[a]) / d.cell_size - 1e-9).ceil();
+            let sized = ok_min && ok_max && d.cell_size.is_finite() && d.cell_size > 0.0;
+            let axes = w.sides.iter().map(|s| s.axis_and_upper().0);
+            if let Some(a) = axes
+                .filter(|&a| a < self.dim && sized)
+                .find(|&a| f64::from(w.thickness) > cells(a) + 1.0 || !cells(a).is_finite())
+            {
+                self.err(
+                    format!("{path}.thickness"),
+                    format!(
+                        "{} layers do not fit in the domain's {} cells on axis {a}",
+                        w.thickness,
+                        cells(a)
+                    ),
+                );
             }
             self.check_contact(&format!("{path}.condition"), w.condition);
         }
@@ -646,6 +681,12 @@ impl Validator {
         let dim = self.dim;
         let dx = s.domain.cell_size;
         let mut out = Vec::new();
+        let mut domain = Region {
+            lo: [0.0; 3],
+            hi: [0.0; 3],
+        };
+        domain.lo[..dim].copy_from_slice(&s.domain.min);
+        domain.hi[..dim].copy_from_slice(&s.domain.max);
         for (i, b) in s.bodies.iter().enumerate() {
             let path = format!("bodies[{i}]");
             let h = dx / b.particles_per_cell as f64;
@@ -654,13 +695,22 @@ impl Validator {
                 spacing: h,
                 ..Default::default()
             };
-            match &b.shape {
-                Shape::Box { min, max } => fill_box(dim, min, max, h, &mut body),
-                Shape::Sphere { center, radius } => {
-                    fill_lattice(dim, center, *radius, h, [0.5; 3], &mut body, |r| {
-                        r.iter().map(|x| x * x).sum::<f64>() <= radius * radius
-                    })
-                }
+            // Only the lattice points where particles may lie are visited (`budget`).
+            let region = budget::body_region(&domain, dx, b.clip_to_domain);
+            let bounds = lattice::bounding_box(dim, &b.shape).map(|r| r.intersect(&region));
+            let bounds = bounds.unwrap_or(region);
+            let filled = match &b.shape {
+                Shape::Box { min, max } => lattice::fill_box(dim, min, max, h, &region, &mut body),
+                Shape::Sphere { center, radius } => lattice::fill_lattice(
+                    dim,
+                    center,
+                    *radius,
+                    h,
+                    [0.5; 3],
+                    &bounds,
+                    &mut body,
+                    |r| r.iter().map(|x| x * x).sum::<f64>() <= radius * radius,
+                ),
                 Shape::Cylinder {
                     center,
                     radius,
@@ -679,7 +729,7 @@ impl Validator {
                             offset[k] = 0.0;
                         }
                     }
-                    fill_lattice(dim, center, reach, h, offset, &mut body, |r| {
+                    lattice::fill_lattice(dim, center, reach, h, offset, &bounds, &mut body, |r| {
                         let along: f64 = r.iter().zip(&a).map(|(x, y)| x * y).sum();
                         let r2: f64 = r.iter().map(|x| x * x).sum::<f64>() - along * along;
                         along.abs() <= length / 2.0 && r2 <= radius * radius
@@ -695,6 +745,7 @@ impl Validator {
                         Ok((positions, volumes)) => {
                             body.positions = positions;
                             body.volumes = volumes;
+                            Ok(())
                         }
                         Err(message) => {
                             self.err(format!("{path}.shape.file.path"), message);
@@ -702,6 +753,10 @@ impl Validator {
                         }
                     }
                 }
+            };
+            if let Err(message) = filled {
+                self.err(format!("{path}.shape"), message);
+                continue;
             }
             for (h_index, hole) in b.holes.iter().enumerate() {
                 if matches!(hole, Shape::File { .. }) {
@@ -803,75 +858,12 @@ fn shape_contains(shape: &Shape, x: &[f64]) -> bool {
             length,
         } => {
             let norm = axis.iter().map(|a| a * a).sum::<f64>().sqrt();
-            let r: Vec<f64> = x.iter().zip(center).map(|(a, c)| a - c).collect();
-            let along: f64 = r.iter().zip(axis).map(|(a, b)| a * b / norm).sum();
-            let r2: f64 = r.iter().map(|a| a * a).sum::<f64>() - along * along;
+            let r = x.iter().zip(center).map(|(a, c)| a - c);
+            let along: f64 = r.clone().zip(axis).map(|(a, b)| a * b / norm).sum();
+            let r2: f64 = r.map(|a| a * a).sum::<f64>() - along * along;
             along.abs() <= length / 2.0 && r2 <= radius * radius
         }
         Shape::File { .. } => false,
-    }
-}
-
-/// Fills an axis-aligned box with a lattice fitted exactly to the box.
-fn fill_box(dim: usize, min: &[f64], max: &[f64], h: f64, body: &mut BodyParticles) {
-    let mut counts = [1usize; 3];
-    let mut step = [0.0; 3];
-    let mut volume = 1.0;
-    for a in 0..dim {
-        let len = max[a] - min[a];
-        counts[a] = (len / h).round() as usize;
-        if counts[a] == 0 {
-            return;
-        }
-        step[a] = len / counts[a] as f64;
-        volume *= step[a];
-    }
-    let total = counts[0] * counts[1] * counts[2];
-    body.positions.reserve(total * dim);
-    for i in 0..counts[0] {
-        for j in 0..counts[1] {
-            for k in 0..counts[2] {
-                let idx = [i, j, k];
-                for a in 0..dim {
-                    body.positions
-                        .push(min[a] + (idx[a] as f64 + 0.5) * step[a]);
-                }
-                body.volumes.push(volume);
-            }
-        }
-    }
-}
-
-/// Fills the points of a lattice centred on `center` within `reach` that satisfy `inside`
-/// (called with the offset from the centre).
-fn fill_lattice(
-    dim: usize,
-    center: &[f64],
-    reach: f64,
-    h: f64,
-    offset: [f64; 3],
-    body: &mut BodyParticles,
-    inside: impl Fn(&[f64]) -> bool,
-) {
-    let n = (reach / h).ceil() as i64 + 1;
-    let volume = h.powi(dim as i32);
-    let range = |a: usize| if a < dim { -n..n } else { 0..1 };
-    let mut r = vec![0.0; dim];
-    for i in range(0) {
-        for j in range(1) {
-            for k in range(2) {
-                let idx = [i, j, k];
-                for a in 0..dim {
-                    r[a] = (idx[a] as f64 + offset[a]) * h;
-                }
-                if inside(&r) {
-                    for a in 0..dim {
-                        body.positions.push(center[a] + r[a]);
-                    }
-                    body.volumes.push(volume);
-                }
-            }
-        }
     }
 }
 
@@ -921,8 +913,28 @@ pub fn read_csv_particles(
     dim: usize,
     spacing: f64,
 ) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let limits = Limits::current();
+    let size = std::fs::metadata(path)
+        .map_err(|e| format!("cannot read `{}`: {e}", path.display()))?
+        .len();
+    if size > limits.max_file_bytes {
+        return Err(format!(
+            "`{}` has {size} bytes; at most {} are read (limit `file_bytes`)",
+            path.display(),
+            limits.max_file_bytes
+        ));
+    }
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
+    let rows = text.lines().filter(|l| !l.trim().is_empty()).count();
+    if rows.saturating_sub(1) as u64 > limits.max_particles {
+        return Err(format!(
+            "`{}` holds {} particles; at most {} are allowed (limit `particles`)",
+            path.display(),
+            rows - 1,
+            limits.max_particles
+        ));
+    }
     let mut lines = text
         .lines()
         .enumerate()
