@@ -5,7 +5,7 @@
 
 use super::Issue;
 use super::lattice::{BoxLattice, CentredLattice, MAX_SPACINGS, Region, bounding_box};
-use super::types::{Scene, Shape};
+use super::{Scene, Shape};
 use std::sync::OnceLock;
 
 /// The largest work a scene may ask for. The defaults are generous for one machine; `mpm`

@@ -3,7 +3,7 @@
 //! body are what [`super::budget`] estimated before anything was allocated.
 
 use super::BodyParticles;
-use super::types::Shape;
+use super::Shape;
 
 /// Per-axis bounds where particles may lie (unused axes of a 2D scene are ignored).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -2,21 +2,75 @@
 //!
 //! Parsing happens in three stages so every problem is reported with the JSON path where it
 //! lies: JSON syntax (line and column), structure (unknown keys, wrong types; via
-//! `serde_path_to_error`), then physics and geometry checks in [`validate`].
+//! `serde_path_to_error`), then physics and geometry checks in [`validate`]. Each section's
+//! types and checks share a file (`domain`, `solver_settings`, `body`, `obstacle`,
+//! `output`); [`Scene`], the top level, is here.
 
+mod body;
+mod body_particles;
 mod budget;
+mod domain;
 mod lattice;
-mod types;
+mod obstacle;
+mod output;
+mod solver_settings;
 mod validate;
+mod validator;
 
+pub use body::{Body, InitialVelocity, ParticleFileFormat, Shape};
+pub use body_particles::{BodyParticles, read_csv_particles};
 pub use budget::{Estimate, Limits, estimate};
-pub use types::*;
+pub use domain::{Contact, Domain, Side, Wall};
+pub use obstacle::{Obstacle, ObstacleShape};
+pub use output::{Output, StopCriteria};
+pub use solver_settings::{AntiLocking, KernelName, Mechanics, Scheme, Solver, Transfer};
 pub use validate::{
-    BodyParticles, CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value,
-    parse_scene_value_limited, read_csv_particles,
+    CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value, parse_scene_value_limited,
 };
 
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::fmt;
+
+/// One simulation: domain, solver settings, materials, bodies, obstacles, output and an
+/// optional reference solution to report the error against.
+#[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Name of the run; the result store is `<out>/<name>.zarr`. Letters, digits, `-`, `_`, `.`.
+    pub name: String,
+    /// Free text for people.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    /// 2 (plane strain) or 3.
+    pub dimension: u8,
+    /// The background grid and its walls.
+    pub domain: Domain,
+    /// Time integration, kernel, transfer and update scheme.
+    pub solver: Solver,
+    /// Materials by name; each has a `type` provided by a plugin (`linear_elastic`, ...).
+    pub materials: BTreeMap<String, serde_json::Value>,
+    /// Bodies made of particles.
+    pub bodies: Vec<Body>,
+    /// Rigid obstacles acting on the grid.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub obstacles: Vec<Obstacle>,
+    /// Physics beyond mechanics by name (`thermal`, `phase_change`, ...), each provided by a
+    /// plugin; run in the order the plugins require (see `mpm plugins`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub physics: BTreeMap<String, serde_json::Value>,
+    /// What is written and how often.
+    #[serde(default)]
+    pub output: Output,
+    /// Criteria that stop a run which is going wrong.
+    #[serde(default)]
+    pub stop: StopCriteria,
+    /// A reference solution, selected by its `type` among those the core and the plugins
+    /// register; the run reports its error against it in `metrics.error`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<serde_json::Value>,
+}
 
 /// One problem in a scene file, at a JSON path such as `materials.steel.poisson_ratio`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

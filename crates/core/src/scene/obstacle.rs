@@ -1,0 +1,111 @@
+//! The `obstacles` section: rigid shapes moving at constant velocity that constrain the
+//! grid nodes inside them; the types and their checks.
+
+use super::Contact;
+use super::validator::Validator;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// A rigid obstacle moving at constant velocity; grid nodes inside it are constrained.
+#[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Obstacle {
+    /// Name for people.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// Geometry at time 0.
+    pub shape: ObstacleShape,
+    /// Contact condition.
+    pub condition: Contact,
+    /// Velocity of the obstacle (one number per dimension); zero when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<Vec<f64>>,
+}
+
+/// Geometry of a rigid obstacle.
+#[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObstacleShape {
+    /// Half-space behind a plane: the solid side is opposite to `normal`.
+    Plane {
+        /// A point on the plane.
+        point: Vec<f64>,
+        /// Outward normal (pointing into the free side).
+        normal: Vec<f64>,
+    },
+    /// Solid axis-aligned box.
+    Box {
+        /// Lower corner.
+        min: Vec<f64>,
+        /// Upper corner.
+        max: Vec<f64>,
+    },
+    /// Solid sphere (disk in 2D).
+    Sphere {
+        /// Centre.
+        center: Vec<f64>,
+        /// Radius.
+        radius: f64,
+    },
+    /// Solid infinite cylinder (3D) around an axis through `center`.
+    Cylinder {
+        /// A point on the axis.
+        center: Vec<f64>,
+        /// Axis direction.
+        axis: Vec<f64>,
+        /// Radius.
+        radius: f64,
+    },
+}
+
+impl Obstacle {
+    /// Checks an obstacle at `path` (`obstacles[0]`): shape, contact law, velocity.
+    pub(super) fn validate(&self, v: &mut Validator, path: &str) {
+        match &self.shape {
+            ObstacleShape::Plane { point, normal } => {
+                v.vector(&format!("{path}.shape.plane.point"), point);
+                v.nonzero_vector(&format!("{path}.shape.plane.normal"), normal);
+            }
+            ObstacleShape::Box { min, max } => {
+                let p = format!("{path}.shape.box");
+                if v.vector(&format!("{p}.min"), min) && v.vector(&format!("{p}.max"), max) {
+                    for a in 0..v.dim {
+                        if max[a] <= min[a] {
+                            v.err(format!("{p}.max[{a}]"), format!("must exceed min[{a}]"));
+                        }
+                    }
+                }
+            }
+            ObstacleShape::Sphere { center, radius } => {
+                v.vector(&format!("{path}.shape.sphere.center"), center);
+                v.positive(&format!("{path}.shape.sphere.radius"), *radius);
+            }
+            ObstacleShape::Cylinder {
+                center,
+                axis,
+                radius,
+            } => {
+                let p = format!("{path}.shape.cylinder");
+                if v.dim != 3 {
+                    v.err(
+                        &p,
+                        "cylinders are 3D obstacles; use a sphere for a disk in 2D",
+                    );
+                }
+                v.vector(&format!("{p}.center"), center);
+                v.nonzero_vector(&format!("{p}.axis"), axis);
+                v.positive(&format!("{p}.radius"), *radius);
+            }
+        }
+        self.condition.validate(v, &format!("{path}.condition"));
+        if self.condition == Contact::Symmetry {
+            v.err(
+                format!("{path}.condition"),
+                "symmetry applies to walls on the domain faces only",
+            );
+        }
+        if let Some(velocity) = &self.velocity {
+            v.vector(&format!("{path}.velocity"), velocity);
+        }
+    }
+}

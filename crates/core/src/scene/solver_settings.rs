@@ -1,0 +1,236 @@
+//! The `solver` section: kernel, transfer, update scheme, time step, gravity, damping,
+//! mechanics mode and anti-locking; its types and its checks.
+
+use super::validator::Validator;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Kernel (shape function) names as used in scenes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum KernelName {
+    /// Linear tent functions.
+    Linear,
+    /// Uniform GIMP.
+    Gimp,
+    /// Quadratic B-spline.
+    Bspline2,
+    /// Cubic B-spline.
+    Bspline3,
+}
+
+/// How particle velocities come back from the grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Transfer {
+    /// Particle-in-cell: dissipative, stable.
+    Pic,
+    /// FLIP blended with PIC by `solver.flip_blend`.
+    Flip,
+    /// Affine particle-in-cell: keeps angular momentum and an affine velocity per particle.
+    Apic,
+}
+
+/// When the stress is updated within a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Scheme {
+    /// Update stress first, from the grid velocity before the momentum update.
+    Usf,
+    /// Update stress last, from the updated grid velocity.
+    Usl,
+    /// Modified USL: the updated particle velocities are mapped back to the grid first.
+    Musl,
+}
+
+/// Time integration and discretisation choices.
+#[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Solver {
+    /// Simulated end time, seconds.
+    pub end_time: f64,
+    /// Shape functions.
+    #[serde(default = "default_kernel")]
+    pub kernel: KernelName,
+    /// Particle velocity update.
+    #[serde(default = "default_transfer")]
+    pub transfer: Transfer,
+    /// FLIP fraction in the FLIP/PIC blend (1 = pure FLIP). Used with `transfer: flip`.
+    #[serde(default = "default_flip_blend")]
+    pub flip_blend: f64,
+    /// Use the MLS-MPM force (needs `transfer: apic`).
+    #[serde(default)]
+    pub mls: bool,
+    /// Stress update scheme.
+    #[serde(default = "default_scheme")]
+    pub scheme: Scheme,
+    /// Courant number: dt = cfl · cell_size / max(|v| + c). Used when `dt` is not given.
+    #[serde(default = "default_cfl")]
+    pub cfl: f64,
+    /// Fixed time step, seconds. Refused when it exceeds `max_cfl` times the stable step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt: Option<f64>,
+    /// Largest Courant number a fixed `dt` may reach before the run refuses it.
+    #[serde(default = "default_max_cfl")]
+    pub max_cfl: f64,
+    /// Gravity (one number per dimension), m/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<Vec<f64>>,
+    /// Viscous damping rate of the grid velocity, 1/s (0 = none); for reaching equilibrium.
+    #[serde(default)]
+    pub damping: f64,
+    /// Reorder particles by cell every this many steps, for memory locality (0 = never).
+    #[serde(default = "default_sort_interval")]
+    pub sort_interval: u32,
+    /// Volumetric anti-locking for near-incompressible materials.
+    #[serde(default, skip_serializing_if = "AntiLocking::is_none")]
+    pub anti_locking: AntiLocking,
+    /// How mechanics advances: explicit dynamics (the default), not at all (physics only,
+    /// particles stay put), or quasi-statically (relaxed to equilibrium every step).
+    #[serde(default, skip_serializing_if = "Mechanics::is_dynamic")]
+    pub mechanics: Mechanics,
+}
+
+/// How the mechanical part of a step is advanced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Mechanics {
+    /// Explicit dynamics: the step is bounded by the wave speed (CFL).
+    #[default]
+    Dynamic,
+    /// No mechanics: particles keep their place and carry no stress; the step is the
+    /// physics' own stable step or `solver.dt`. For heat conduction and kinetics alone.
+    Off,
+    /// Quasi-static: after the physics of every step (of `solver.dt` or the physics' stable
+    /// step), damped explicit iterations relax the body to equilibrium under the new free
+    /// strains and loads. For slow processes (cure, cool-down) where inertia plays no part.
+    QuasiStatic {
+        /// Most relaxation iterations per step; a step that does not converge in them stops
+        /// the run with a diagnostic.
+        #[serde(default = "default_relax_iterations")]
+        max_iterations: u32,
+        /// Converged when the kinetic energy falls below this fraction of the strain energy
+        /// (and of the largest kinetic energy of the step).
+        #[serde(default = "default_relax_tolerance")]
+        tolerance: f64,
+        /// Velocity damping rate during relaxation, 1/s; default: critical damping of the
+        /// lowest mode of the domain, 2π·c/(longest domain edge).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        damping: Option<f64>,
+    },
+}
+
+impl Mechanics {
+    /// Whether mechanics is explicit dynamics (the default).
+    pub fn is_dynamic(&self) -> bool {
+        *self == Mechanics::Dynamic
+    }
+}
+
+fn default_relax_iterations() -> u32 {
+    5000
+}
+fn default_relax_tolerance() -> f64 {
+    1e-6
+}
+
+/// Volumetric anti-locking options.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AntiLocking {
+    /// Each particle keeps its own volume change.
+    #[default]
+    None,
+    /// F-bar: the volume change is averaged over the neighbouring grid nodes.
+    Fbar,
+}
+
+impl AntiLocking {
+    /// Whether no anti-locking is asked for.
+    pub fn is_none(&self) -> bool {
+        *self == AntiLocking::None
+    }
+}
+
+fn default_kernel() -> KernelName {
+    KernelName::Bspline2
+}
+fn default_transfer() -> Transfer {
+    Transfer::Apic
+}
+fn default_flip_blend() -> f64 {
+    0.99
+}
+fn default_scheme() -> Scheme {
+    Scheme::Usl
+}
+fn default_cfl() -> f64 {
+    0.3
+}
+fn default_max_cfl() -> f64 {
+    1.0
+}
+fn default_sort_interval() -> u32 {
+    16
+}
+
+impl Solver {
+    /// Checks the time step, CFL, transfer and scheme combinations, gravity and mechanics.
+    pub(super) fn validate(&self, v: &mut Validator) {
+        v.positive("solver.end_time", self.end_time);
+        if !(self.cfl > 0.0 && self.cfl <= 1.0) {
+            v.err(
+                "solver.cfl",
+                format!("must be in (0, 1] (got {})", self.cfl),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.flip_blend) {
+            v.err("solver.flip_blend", "must be in [0, 1]");
+        }
+        if self.mls && self.transfer != Transfer::Apic {
+            v.err("solver.mls", "the MLS-MPM force needs `transfer: apic`");
+        }
+        if self.mls && !matches!(self.kernel, KernelName::Bspline2 | KernelName::Bspline3) {
+            v.err(
+                "solver.mls",
+                "the MLS-MPM force needs a B-spline kernel (constant APIC inertia)",
+            );
+        }
+        if self.mls && self.scheme != Scheme::Usl {
+            v.err(
+                "solver.mls",
+                "the MLS-MPM force is a USL scheme: use `scheme: usl`",
+            );
+        }
+        if let Some(dt) = self.dt {
+            v.positive("solver.dt", dt);
+        }
+        v.positive("solver.max_cfl", self.max_cfl);
+        if let Some(g) = &self.gravity {
+            v.vector("solver.gravity", g);
+        }
+        if !(self.damping.is_finite() && self.damping >= 0.0) {
+            v.err("solver.damping", "must be a finite number >= 0");
+        }
+        if let Mechanics::QuasiStatic {
+            max_iterations,
+            tolerance,
+            damping,
+        } = self.mechanics
+        {
+            let p = "solver.mechanics.quasi_static";
+            if max_iterations == 0 {
+                v.err(format!("{p}.max_iterations"), "must be at least 1");
+            }
+            if !(tolerance > 0.0 && tolerance < 1.0) {
+                v.err(
+                    format!("{p}.tolerance"),
+                    format!("must lie in (0, 1) (got {tolerance})"),
+                );
+            }
+            if let Some(d) = damping {
+                v.positive(&format!("{p}.damping"), d);
+            }
+        }
+    }
+}

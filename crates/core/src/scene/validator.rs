@@ -1,0 +1,48 @@
+//! What every section check writes to: the problems found so far, each at its JSON path,
+//! and the checks most sections share (positive numbers, vectors of the scene's dimension).
+
+use super::Issue;
+
+/// Collects a scene's problems; sections validate themselves into it.
+pub(super) struct Validator {
+    pub(super) issues: Vec<Issue>,
+    pub(super) dim: usize,
+}
+
+impl Validator {
+    pub(super) fn err(&mut self, path: impl Into<String>, message: impl Into<String>) {
+        self.issues.push(Issue::new(path, message));
+    }
+
+    pub(super) fn positive(&mut self, path: &str, x: f64) {
+        if !(x.is_finite() && x > 0.0) {
+            self.err(path, format!("must be a finite number > 0 (got {x})"));
+        }
+    }
+
+    pub(super) fn vector(&mut self, path: &str, v: &[f64]) -> bool {
+        if v.len() != self.dim {
+            self.err(
+                path,
+                format!(
+                    "needs {} numbers for a {}D scene (got {})",
+                    self.dim,
+                    self.dim,
+                    v.len()
+                ),
+            );
+            return false;
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            self.err(path, "every number must be finite");
+            return false;
+        }
+        true
+    }
+
+    pub(super) fn nonzero_vector(&mut self, path: &str, v: &[f64]) {
+        if self.vector(path, v) && v.iter().map(|x| x * x).sum::<f64>() == 0.0 {
+            self.err(path, "must not be the zero vector");
+        }
+    }
+}
