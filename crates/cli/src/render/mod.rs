@@ -1,0 +1,244 @@
+//! `mpm render`: one frame of a 2D result store as a PNG picture of the particles coloured
+//! by a field (equal axes, a viridis colour bar), for documentation pictures; optionally
+//! with the voids of a table in the store's metrics marked as red circles.
+
+mod colour;
+mod draw;
+mod geometry;
+mod labels;
+mod voids;
+
+pub(crate) use labels::short;
+
+use crate::exit_status::input_error;
+use anyhow::{Context, bail};
+use colour::finite_range;
+use draw::{Picture, draw};
+use geometry::{domain, particle_spacing, picture_bounds};
+use mpm_io::ResultStore;
+use serde_json::Value;
+use std::path::PathBuf;
+use voids::parse_voids;
+
+/// What to draw, as given on the command line.
+#[derive(Debug)]
+pub(crate) struct RenderArgs {
+    /// Result store.
+    pub store: PathBuf,
+    /// Particle field to colour by.
+    pub field: String,
+    /// Frame; negative counts from the end; `None` is the last.
+    pub frame: Option<i64>,
+    /// Flat component index of a vector or tensor field.
+    pub component: usize,
+    /// PNG file to write.
+    pub out: PathBuf,
+    /// Title instead of the default one.
+    pub title: Option<String>,
+    /// Name of a metrics table of voids to mark.
+    pub voids: Option<String>,
+}
+
+/// What was drawn.
+#[derive(Debug)]
+pub(crate) struct Rendered {
+    /// Frame index.
+    pub frame: u64,
+    /// Time of the frame, s.
+    pub time: f64,
+    /// Particles drawn.
+    pub particles: usize,
+    /// Field label (with the component of a vector or tensor field).
+    pub label: String,
+    /// Range of the finite values (NaN when there are none).
+    pub range: (f64, f64),
+    /// Voids marked, when a table was drawn.
+    pub voids: Option<usize>,
+}
+
+/// Reads one frame of `args.store` and writes the picture to `args.out`.
+pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
+    let is_png = args
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        return Err(input_error!(
+            "--out `{}`: the picture is written as PNG; give a file name ending in .png",
+            args.out.display()
+        ));
+    }
+    let store = ResultStore::open(&args.store)
+        .with_context(|| format!("cannot open result store `{}`", args.store.display()))?;
+    let dim = store.dimension();
+    if dim != 2 {
+        return Err(input_error!(
+            "render draws 2D stores only; `{}` holds a {dim}D run",
+            args.store.display()
+        ));
+    }
+    let fields = store.fields()?;
+    if !fields.contains(&args.field) {
+        return Err(input_error!(
+            "field `{}` is not in `{}`; available fields: {}",
+            args.field,
+            args.store.display(),
+            fields.join(", ")
+        ));
+    }
+    if !fields.iter().any(|f| f == "x") {
+        return Err(input_error!(
+            "`{}` stores no particle positions (field `x`); available fields: {}",
+            args.store.display(),
+            fields.join(", ")
+        ));
+    }
+    let times = store.times()?;
+    let k = resolve_frame(args.frame, times.len() as u64)?;
+    let time = times[k as usize];
+
+    let (_, positions) = store.frame("x", k)?;
+    let n = positions.len() / 2;
+    let (shape, values) = store.frame(&args.field, k)?;
+    let components: usize = shape.iter().skip(1).product::<u64>() as usize;
+    if shape.first().copied() != Some(n as u64) || values.len() != n * components {
+        bail!(
+            "field `{}` has shape {shape:?} per frame, which does not match the {n} particles of `x`",
+            args.field
+        );
+    }
+    if args.component >= components {
+        return Err(input_error!(
+            "field `{}` has {components} component(s) per particle (shape {:?}); --component must be below {components}",
+            args.field,
+            &shape[1..]
+        ));
+    }
+    let label = if components > 1 {
+        format!("{}[{}]", args.field, args.component)
+    } else {
+        args.field.clone()
+    };
+
+    let mut points = Vec::with_capacity(n);
+    let mut scalar = Vec::with_capacity(n);
+    for p in 0..n {
+        let (x, y) = (positions[2 * p], positions[2 * p + 1]);
+        if x.is_finite() && y.is_finite() {
+            points.push((x, y));
+            scalar.push(values[p * components + args.component]);
+        }
+    }
+
+    let voids = match &args.voids {
+        None => None,
+        Some(table) => match parse_voids(store.attributes().get("metrics"), table) {
+            Ok(t) => {
+                if t.skipped > 0 {
+                    eprintln!(
+                        "warning: {} row(s) of table `{table}` lack a finite x, y or area; not drawn",
+                        t.skipped
+                    );
+                }
+                Some(t.voids)
+            }
+            Err(message) => {
+                eprintln!("warning: {message}; drawing without voids");
+                None
+            }
+        },
+    };
+
+    let attributes = store.attributes();
+    let scene = attributes
+        .get("scene")
+        .and_then(|s| s.get("name"))
+        .and_then(Value::as_str)
+        .map(str::to_string)
+        .unwrap_or_else(|| {
+            args.store
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "result".into())
+        });
+    let mut title = args
+        .title
+        .clone()
+        .unwrap_or_else(|| format!("{scene} — {label} at t = {} s", short(time)));
+    if let Some(v) = &voids {
+        let noun = if v.len() == 1 { "void" } else { "voids" };
+        title = format!("{title}, {} {noun}", v.len());
+    }
+
+    let spacing = particle_spacing(&points);
+    let bounds = picture_bounds(&points, domain(attributes), spacing.unwrap_or(0.0))
+        .context("nothing to draw: no particle positions and no domain in the store")?;
+    let spacing = spacing.unwrap_or_else(|| {
+        let (w, h) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
+        (w * h / points.len().max(1) as f64).sqrt()
+    });
+    let range = finite_range(&scalar);
+
+    std::fs::File::create(&args.out)
+        .with_context(|| format!("cannot write `{}`", args.out.display()))?;
+    let picture = Picture {
+        points: &points,
+        values: &scalar,
+        range,
+        spacing,
+        bounds,
+        title: &title,
+        label: &label,
+        voids: voids.as_deref().unwrap_or(&[]),
+    };
+    if let Err(e) = draw(&args.out, &picture) {
+        let _ = std::fs::remove_file(&args.out);
+        return Err(e.context(format!("drawing `{}`", args.out.display())));
+    }
+    Ok(Rendered {
+        frame: k,
+        time,
+        particles: points.len(),
+        label,
+        range,
+        voids: voids.map(|v| v.len()),
+    })
+}
+
+/// The frame index of `frame` (negative counts from the end; `None` is the last) in a store
+/// of `count` frames.
+fn resolve_frame(frame: Option<i64>, count: u64) -> anyhow::Result<u64> {
+    if count == 0 {
+        return Err(input_error!("the store has no frames"));
+    }
+    let k = frame.unwrap_or(-1);
+    let index = if k < 0 { count as i64 + k } else { k };
+    if index < 0 || index >= count as i64 {
+        return Err(input_error!(
+            "frame {k} is out of range: the store has {count} frame(s), 0 to {} (or -{count} to -1 from the end)",
+            count - 1
+        ));
+    }
+    Ok(index as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_count_from_the_end_when_negative() {
+        assert_eq!(resolve_frame(None, 3).unwrap(), 2);
+        assert_eq!(resolve_frame(Some(-1), 3).unwrap(), 2);
+        assert_eq!(resolve_frame(Some(-3), 3).unwrap(), 0);
+        assert_eq!(resolve_frame(Some(1), 3).unwrap(), 1);
+        let e = resolve_frame(Some(3), 3).unwrap_err().to_string();
+        assert!(
+            e.contains("out of range") && e.contains("3 frame(s)"),
+            "{e}"
+        );
+        assert!(resolve_frame(Some(-4), 3).is_err());
+        assert!(resolve_frame(None, 0).is_err());
+    }
+}
