@@ -226,7 +226,7 @@ pub fn capillary_fill_time(
 mod tests {
     use super::*;
     use mpm_core::particles::Particles;
-    use mpm_core::reference::test_particles;
+    use mpm_core::reference::{assert_each_names_its_path, section_issues, test_particles};
     use mpm_core::scene::test_scene;
 
     fn settings(overrides: serde_json::Value) -> serde_json::Value {
@@ -242,10 +242,7 @@ mod tests {
 
     /// The issues the factory finds with a reference given as JSON, in a `dim`-D scene.
     fn issues(dim: usize, json: serde_json::Value) -> Vec<(String, String)> {
-        match factory().build(&json, "reference", &test_scene(dim)) {
-            Ok(_) => Vec::new(),
-            Err(issues) => issues.into_iter().map(|i| (i.path, i.message)).collect(),
-        }
+        section_issues(factory().as_ref(), &json, dim)
     }
 
     #[test]
@@ -282,12 +279,7 @@ mod tests {
                 "> 0",
             ),
         ];
-        for (overrides, path, words) in cases {
-            let found = issues(2, settings(overrides));
-            assert_eq!(found.len(), 1, "{found:?}");
-            assert_eq!(found[0].0, path, "{found:?}");
-            assert!(found[0].1.contains(words), "{found:?}");
-        }
+        assert_each_names_its_path(factory().as_ref(), &settings(serde_json::json!({})), &cases);
         // Non-finite numbers cannot be written in JSON; check the typed value directly.
         let typed = CapillaryFillingParams {
             axis: 0,

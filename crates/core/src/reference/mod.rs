@@ -205,6 +205,40 @@ pub fn compare(quantity: &str, measured: f64, reference: f64) -> Comparison {
     }
 }
 
+/// The issues `factory` finds with a reference `section` in a `dimension`-D scene, as
+/// (JSON path, message) pairs (none when it builds); for the unit tests of the checks.
+#[doc(hidden)]
+pub fn section_issues(
+    factory: &dyn ReferenceFactory,
+    section: &serde_json::Value,
+    dimension: usize,
+) -> Vec<(String, String)> {
+    match factory.build(section, "reference", &crate::scene::test_scene(dimension)) {
+        Ok(_) => Vec::new(),
+        Err(issues) => issues.into_iter().map(|i| (i.path, i.message)).collect(),
+    }
+}
+
+/// Asserts that each `(overrides, path, words)` case, applied to the valid section `base`,
+/// gives exactly one issue, at `path`, whose message contains `words` (2D scene).
+#[doc(hidden)]
+pub fn assert_each_names_its_path(
+    factory: &dyn ReferenceFactory,
+    base: &serde_json::Value,
+    cases: &[(serde_json::Value, &str, &str)],
+) {
+    for (overrides, path, words) in cases {
+        let mut section = base.clone();
+        for (k, v) in overrides.as_object().expect("an object") {
+            section[k] = v.clone();
+        }
+        let found = section_issues(factory, &section, 2);
+        assert_eq!(found.len(), 1, "{overrides}: {found:?}");
+        assert_eq!(found[0].0, *path, "{found:?}");
+        assert!(found[0].1.contains(words), "{found:?}");
+    }
+}
+
 /// Test particles for reference unit tests: positions, volumes and zeroed shared fields
 /// named `fields` (no material groups).
 #[doc(hidden)]

@@ -190,7 +190,7 @@ pub fn poiseuille_startup_velocity(
 mod tests {
     use super::*;
     use crate::particles::Particles;
-    use crate::reference::test_particles;
+    use crate::reference::{assert_each_names_its_path, section_issues, test_particles};
     use crate::scene::test_scene;
 
     fn poiseuille(overrides: serde_json::Value) -> serde_json::Value {
@@ -206,10 +206,7 @@ mod tests {
 
     /// The issues the factory finds with a reference given as JSON, in a `dim`-D scene.
     fn issues(dim: usize, json: serde_json::Value) -> Vec<(String, String)> {
-        match factory().build(&json, "reference", &test_scene(dim)) {
-            Ok(_) => Vec::new(),
-            Err(issues) => issues.into_iter().map(|i| (i.path, i.message)).collect(),
-        }
+        section_issues(factory().as_ref(), &json, dim)
     }
 
     #[test]
@@ -251,12 +248,11 @@ mod tests {
                 "> 0",
             ),
         ];
-        for (overrides, path, words) in cases {
-            let found = issues(2, poiseuille(overrides));
-            assert_eq!(found.len(), 1, "{found:?}");
-            assert_eq!(found[0].0, path, "{found:?}");
-            assert!(found[0].1.contains(words), "{found:?}");
-        }
+        assert_each_names_its_path(
+            factory().as_ref(),
+            &poiseuille(serde_json::json!({})),
+            &cases,
+        );
         // Non-finite numbers cannot be written in JSON; check the typed value directly.
         let typed = PoiseuilleStartupParams {
             axis: 0,

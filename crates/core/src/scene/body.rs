@@ -118,18 +118,10 @@ impl Shape {
     pub(super) fn validate(&self, v: &mut Validator, path: &str) {
         match self {
             Shape::Box { min, max } => {
-                let p = format!("{path}.box");
-                if v.vector(&format!("{p}.min"), min) && v.vector(&format!("{p}.max"), max) {
-                    for a in 0..v.dim {
-                        if max[a] <= min[a] {
-                            v.err(format!("{p}.max[{a}]"), format!("must exceed min[{a}]"));
-                        }
-                    }
-                }
+                v.box_corners(&format!("{path}.box"), min, max);
             }
             Shape::Sphere { center, radius } => {
-                v.vector(&format!("{path}.sphere.center"), center);
-                v.positive(&format!("{path}.sphere.radius"), *radius);
+                v.sphere(&format!("{path}.sphere"), center, *radius);
             }
             Shape::Cylinder {
                 center,

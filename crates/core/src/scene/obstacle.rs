@@ -67,18 +67,10 @@ impl Obstacle {
                 v.nonzero_vector(&format!("{path}.shape.plane.normal"), normal);
             }
             ObstacleShape::Box { min, max } => {
-                let p = format!("{path}.shape.box");
-                if v.vector(&format!("{p}.min"), min) && v.vector(&format!("{p}.max"), max) {
-                    for a in 0..v.dim {
-                        if max[a] <= min[a] {
-                            v.err(format!("{p}.max[{a}]"), format!("must exceed min[{a}]"));
-                        }
-                    }
-                }
+                v.box_corners(&format!("{path}.shape.box"), min, max);
             }
             ObstacleShape::Sphere { center, radius } => {
-                v.vector(&format!("{path}.shape.sphere.center"), center);
-                v.positive(&format!("{path}.shape.sphere.radius"), *radius);
+                v.sphere(&format!("{path}.shape.sphere"), center, *radius);
             }
             ObstacleShape::Cylinder {
                 center,

@@ -45,4 +45,21 @@ impl Validator {
             self.err(path, "must not be the zero vector");
         }
     }
+
+    /// A box at `path` (`….box`): `min` and `max` of the scene's dimension, `max` above `min`.
+    pub(super) fn box_corners(&mut self, path: &str, min: &[f64], max: &[f64]) {
+        if self.vector(&format!("{path}.min"), min) && self.vector(&format!("{path}.max"), max) {
+            for a in 0..self.dim {
+                if max[a] <= min[a] {
+                    self.err(format!("{path}.max[{a}]"), format!("must exceed min[{a}]"));
+                }
+            }
+        }
+    }
+
+    /// A sphere at `path` (`….sphere`): a centre of the scene's dimension, a radius > 0.
+    pub(super) fn sphere(&mut self, path: &str, center: &[f64], radius: f64) {
+        self.vector(&format!("{path}.center"), center);
+        self.positive(&format!("{path}.radius"), radius);
+    }
 }
