@@ -7,9 +7,8 @@ mod common;
 use common::*;
 use reqwest::blocking::Client;
 use serde_json::{Value, json};
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 fn example_json(name: &str) -> Value {
@@ -33,22 +32,6 @@ fn bad_scenes() -> Vec<(&'static str, Value, &'static str)> {
         ("bar-box-min", b, "bodies[0].shape.box.min[0]"),
         ("disk-radius", c, "bodies[0].shape.sphere.radius"),
     ]
-}
-
-fn mpm(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mpm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("mpm starts")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
 }
 
 #[test]
@@ -161,24 +144,14 @@ struct Server {
 
 impl Server {
     fn start(data: &Path, extra: &[&str]) -> Server {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_mpm"))
-            // One thread: the jobs' address space then does not grow with the core count.
-            .env("MPM_THREADS", "1")
-            .args(["serve", "--listen", "127.0.0.1:0", "--data"])
-            .arg(data)
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("mpm serve starts");
-        let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-        let url = loop {
-            let line = lines.next().expect("server prints its address").unwrap();
-            if let Some(url) = line.strip_prefix("listening on ") {
-                break url.to_string();
-            }
-        };
-        std::thread::spawn(move || for _ in lines {});
+        let (child, url) = serve(
+            Command::new(env!("CARGO_BIN_EXE_mpm"))
+                // One thread: the jobs' address space then does not grow with the core count.
+                .env("MPM_THREADS", "1")
+                .args(["serve", "--listen", "127.0.0.1:0", "--data"])
+                .arg(data)
+                .args(extra),
+        );
         Server { child, url }
     }
 }

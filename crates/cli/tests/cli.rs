@@ -5,23 +5,6 @@ mod common;
 use common::*;
 use serde_json::json;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn mpm(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mpm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("mpm starts")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// A bad scene: `mpm validate` and `mpm run` both exit 2, name `path`, and write nothing.
 fn assert_rejected(scene: serde_json::Value, path: &str) {

@@ -6,23 +6,6 @@ mod common;
 
 use common::*;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn mpm(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mpm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("mpm starts")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// Runs an example with `--set` overrides into `dir/out`; returns the store's path.
 fn run_example(dir: &Path, name: &str, overrides: &[&str]) -> String {

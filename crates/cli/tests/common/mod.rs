@@ -4,7 +4,9 @@
 use mpm_core::output::{Metrics, NullSink};
 use mpm_core::scene::ValidatedScene;
 use mpm_core::solver::{Control, Progress, run_scene};
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
 
 /// Path of a file in the repository's `examples/`.
 pub fn example(name: &str) -> PathBuf {
@@ -56,4 +58,41 @@ pub fn write_scene(dir: &Path, name: &str, scene: &serde_json::Value) -> PathBuf
 /// The vibrating bar example as JSON.
 pub fn bar_json() -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(example("vibrating-bar.json")).unwrap()).unwrap()
+}
+
+/// Runs the built `mpm` with `args` in `dir` and collects its output.
+pub fn mpm(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mpm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("mpm starts")
+}
+
+/// Stdout then stderr of a finished command, as text.
+pub fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Spawns `command` (an `mpm serve` on `127.0.0.1:0`), waits for the address it prints and
+/// keeps draining its stdout so it never blocks; returns the child and its base URL.
+pub fn serve(command: &mut Command) -> (Child, String) {
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("mpm serve starts");
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let url = loop {
+        let line = lines.next().expect("server prints its address").unwrap();
+        if let Some(url) = line.strip_prefix("listening on ") {
+            break url.to_string();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    (child, url)
 }
