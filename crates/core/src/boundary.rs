@@ -265,6 +265,58 @@ impl<const D: usize> Boundaries<D> {
 }
 
 impl<const D: usize> Boundaries<D> {
+    /// Calls `f(normal, contact, surface_velocity)` for every wall and obstacle acting on
+    /// node `ijk` at position `x` and time `t` (the same nodes [`Self::apply`] constrains);
+    /// the normal points out of the surface into the body. Implicit mechanics turns these
+    /// into constraints on the displacement increment.
+    pub fn node_conditions(
+        &self,
+        ijk: [usize; 3],
+        x: &Vector<D>,
+        t: f64,
+        mut f: impl FnMut(Vector<D>, Contact, Vector<D>),
+    ) {
+        for wall in &self.walls {
+            let i = ijk[wall.axis];
+            let inside = if wall.upper {
+                i >= wall.surface
+            } else {
+                i <= wall.surface
+            };
+            if inside {
+                let mut n = Vector::<D>::zeros();
+                n[wall.axis] = if wall.upper { -1.0 } else { 1.0 };
+                f(n, wall.contact, Vector::<D>::zeros());
+            }
+        }
+        for obstacle in &self.obstacles {
+            let local = x - obstacle.velocity * t;
+            let (phi, n) = obstacle.solid.distance_and_normal(&local);
+            if phi <= 0.0 {
+                f(n, obstacle.contact, obstacle.velocity);
+            }
+        }
+    }
+
+    /// Calls `f(ghost, front, axis, symmetry)` for every ghost node behind a stick or
+    /// symmetry wall and the node it mirrors, in the order [`Self::mirror_stick_walls`]
+    /// uses (walls in turn, nearest planes first).
+    pub fn for_each_mirror_node(
+        &self,
+        nodes: [usize; 3],
+        mut f: impl FnMut([usize; 3], [usize; 3], usize, bool),
+    ) {
+        self.mirrored_wall_planes(nodes, |a, ghost, front, symmetry| {
+            for_each_node_in_plane(nodes, a, ghost, |ijk_ghost| {
+                let mut ijk_front = ijk_ghost;
+                ijk_front[a] = front;
+                f(ijk_ghost, ijk_front, a, symmetry);
+            });
+        });
+    }
+}
+
+impl<const D: usize> Boundaries<D> {
     /// Visits each stick or symmetry wall's (ghost, front) node-plane pairs, nearest the
     /// surface first, with whether the wall is a symmetry plane.
     fn mirrored_wall_planes(

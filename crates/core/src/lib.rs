@@ -5,9 +5,9 @@
 //! `docs/ARCHITECTURE.md` for the step pipeline.
 
 pub mod boundary;
-pub mod conjugate_gradient;
 pub mod grid;
 pub mod kernels;
+pub mod linear_solvers;
 pub mod material;
 pub mod math;
 pub mod output;

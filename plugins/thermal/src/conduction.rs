@@ -3,7 +3,7 @@
 
 use crate::boundary::Face;
 use crate::parameters::{Integrator, ThermalParameters};
-use mpm_core::conjugate_gradient::{Work, solve};
+use mpm_core::linear_solvers::conjugate_gradient::{Work, solve};
 use mpm_core::math::{Matrix, Vector, determinant};
 use mpm_core::physics::{
     FREE_STRAIN, HEAT_RELEASE, Interpolation, PLASTIC_WORK, PhysicsContext, PhysicsFault,

@@ -8,7 +8,7 @@
 
 use crate::front::{FRONT, FULL, FlowState};
 use crate::lattice::Lattice;
-use mpm_core::conjugate_gradient::{Work, solve};
+use mpm_core::linear_solvers::conjugate_gradient::{Work, solve};
 
 /// Work arrays of the pressure solve, one number per cell each.
 pub(crate) struct HeleShawWork {

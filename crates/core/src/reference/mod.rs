@@ -7,10 +7,12 @@
 //! dimension, like a material's `ConstitutiveLaw`) and a parameter struct, and returns a
 //! [`TypedReferenceFactory`] from `Plugin::references`.
 
+mod bimaterial_strip;
 mod cantilever_elastica;
 mod poiseuille_startup;
 mod vibrating_bar;
 
+pub use bimaterial_strip::bimaterial_curvature;
 pub use cantilever_elastica::heavy_elastica_tip_deflection;
 pub use poiseuille_startup::{poiseuille_startup_profile, poiseuille_startup_velocity};
 
@@ -171,6 +173,7 @@ pub fn core_references() -> Vec<Box<dyn ReferenceFactory>> {
     vec![
         vibrating_bar::factory(),
         cantilever_elastica::factory(),
+        bimaterial_strip::factory(),
         poiseuille_startup::factory(),
     ]
 }

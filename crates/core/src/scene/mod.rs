@@ -23,7 +23,10 @@ pub use budget::{Estimate, Limits, estimate};
 pub use domain::{Contact, Domain, Side, Wall};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{Output, StopCriteria};
-pub use solver_settings::{AntiLocking, KernelName, Mechanics, Scheme, Solver, Transfer};
+pub use solver_settings::{
+    AntiLocking, ImplicitForm, ImplicitSettings, KernelName, KrylovMethod, Mechanics, Scheme,
+    Solver, Transfer,
+};
 pub use validate::{
     CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value, parse_scene_value_limited,
 };

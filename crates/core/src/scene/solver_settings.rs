@@ -118,6 +118,169 @@ pub enum Mechanics {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         damping: Option<f64>,
     },
+    /// Implicit: Newton iterations on the grid displacement increment solve equilibrium
+    /// (`static`) or Newmark dynamics (`dynamic`) every step, with steps far beyond the
+    /// explicit stable step. For stiff, slow processes (cure, cool-down, thermal cycling).
+    Implicit(ImplicitSettings),
+}
+
+/// What the implicit mode solves each step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImplicitForm {
+    /// Equilibrium per load step, no inertia; velocities are zero after each step.
+    #[default]
+    Static,
+    /// Newmark time integration with inertia (average acceleration by default).
+    Dynamic,
+}
+
+/// The Krylov method of each Newton iteration's linear solve.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum KrylovMethod {
+    /// GMRES: the tangent away from equilibrium need not be symmetric or positive definite.
+    #[default]
+    Auto,
+    /// Jacobi-preconditioned conjugate gradients (symmetric tangents).
+    Cg,
+    /// Restarted GMRES, right-preconditioned by Jacobi (any tangent).
+    Gmres,
+}
+
+/// Settings of `solver.mechanics.implicit`; every field has a default.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ImplicitSettings {
+    /// `static` (equilibrium) or `dynamic` (Newmark).
+    #[serde(default)]
+    pub form: ImplicitForm,
+    /// Newmark β (dynamic form); 1/4 with γ = 1/2 is the energy-conserving average
+    /// acceleration rule. Unconditionally stable when β ≥ (γ + 1/2)²/4.
+    #[serde(default = "default_newmark_beta")]
+    pub beta: f64,
+    /// Newmark γ (dynamic form); γ > 1/2 damps the highest frequencies (dissipative variant).
+    #[serde(default = "default_newmark_gamma")]
+    pub gamma: f64,
+    /// Most Newton iterations per step before the step is cut.
+    #[serde(default = "default_newton_iterations")]
+    pub max_newton_iterations: u32,
+    /// Converged when the out-of-balance force norm falls below this fraction of the
+    /// step's force scale (external forces, first residual, internal force contributions).
+    #[serde(default = "default_force_tolerance")]
+    pub force_tolerance: f64,
+    /// Or when the energy norm |δu·R| falls below this fraction of the first iteration's.
+    #[serde(default = "default_energy_tolerance")]
+    pub energy_tolerance: f64,
+    /// Linear solver of each Newton iteration.
+    #[serde(default)]
+    pub krylov: KrylovMethod,
+    /// Relative residual the linear solve reaches (inexact Newton).
+    #[serde(default = "default_krylov_tolerance")]
+    pub krylov_tolerance: f64,
+    /// Most Krylov iterations per linear solve.
+    #[serde(default = "default_krylov_iterations")]
+    pub max_krylov_iterations: u32,
+    /// Halvings of a step that does not converge before the run stops with a diagnostic.
+    #[serde(default = "default_max_cuts")]
+    pub max_cuts: u32,
+    /// Gravity is ramped linearly from 0 over this time, s (static loading in increments);
+    /// absent: full gravity from the first step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity_ramp: Option<f64>,
+}
+
+impl Default for ImplicitSettings {
+    fn default() -> Self {
+        Self {
+            form: ImplicitForm::Static,
+            beta: default_newmark_beta(),
+            gamma: default_newmark_gamma(),
+            max_newton_iterations: default_newton_iterations(),
+            force_tolerance: default_force_tolerance(),
+            energy_tolerance: default_energy_tolerance(),
+            krylov: KrylovMethod::Auto,
+            krylov_tolerance: default_krylov_tolerance(),
+            max_krylov_iterations: default_krylov_iterations(),
+            max_cuts: default_max_cuts(),
+            gravity_ramp: None,
+        }
+    }
+}
+
+fn default_newmark_beta() -> f64 {
+    0.25
+}
+fn default_newmark_gamma() -> f64 {
+    0.5
+}
+fn default_newton_iterations() -> u32 {
+    25
+}
+fn default_force_tolerance() -> f64 {
+    1e-6
+}
+fn default_energy_tolerance() -> f64 {
+    1e-12
+}
+fn default_krylov_tolerance() -> f64 {
+    1e-6
+}
+fn default_krylov_iterations() -> u32 {
+    500
+}
+fn default_max_cuts() -> u32 {
+    6
+}
+
+impl ImplicitSettings {
+    /// Checks the tolerances, iteration counts and Newmark parameters.
+    fn validate(&self, v: &mut Validator) {
+        let p = "solver.mechanics.implicit";
+        for (name, value) in [
+            ("force_tolerance", self.force_tolerance),
+            ("energy_tolerance", self.energy_tolerance),
+            ("krylov_tolerance", self.krylov_tolerance),
+        ] {
+            if !(value > 0.0 && value < 1.0) {
+                v.err(
+                    format!("{p}.{name}"),
+                    format!("must lie in (0, 1) (got {value})"),
+                );
+            }
+        }
+        for (name, value) in [
+            ("max_newton_iterations", self.max_newton_iterations),
+            ("max_krylov_iterations", self.max_krylov_iterations),
+        ] {
+            if value == 0 {
+                v.err(format!("{p}.{name}"), "must be at least 1");
+            }
+        }
+        if self.max_cuts > 30 {
+            v.err(format!("{p}.max_cuts"), "must be at most 30");
+        }
+        if let Some(ramp) = self.gravity_ramp {
+            v.positive(&format!("{p}.gravity_ramp"), ramp);
+        }
+        if !(self.gamma.is_finite() && self.gamma >= 0.5 && self.gamma <= 1.0) {
+            v.err(
+                format!("{p}.gamma"),
+                format!("must lie in [0.5, 1] (got {})", self.gamma),
+            );
+        } else {
+            let least = (self.gamma + 0.5).powi(2) / 4.0;
+            if !(self.beta.is_finite() && self.beta >= least - 1e-12 && self.beta <= 1.0) {
+                v.err(
+                    format!("{p}.beta"),
+                    format!(
+                        "must lie in [(gamma + 1/2)^2/4, 1] = [{least}, 1] for unconditional stability (got {})",
+                        self.beta
+                    ),
+                );
+            }
+        }
+    }
 }
 
 impl Mechanics {
@@ -231,6 +394,9 @@ impl Solver {
             if let Some(d) = damping {
                 v.positive(&format!("{p}.damping"), d);
             }
+        }
+        if let Mechanics::Implicit(settings) = &self.mechanics {
+            settings.validate(v);
         }
     }
 }

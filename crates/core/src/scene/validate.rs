@@ -6,7 +6,7 @@
 
 use super::budget::{self, Limits};
 use super::validator::Validator;
-use super::{BodyParticles, Scene, SceneError, deserialize_at};
+use super::{BodyParticles, Mechanics, Scene, SceneError, deserialize_at};
 use crate::material::Material;
 use crate::physics::Physics;
 use crate::plugin::Registry;
@@ -285,10 +285,14 @@ impl Validator {
                 }
             }
         }
-        if !s.solver.mechanics.is_dynamic() && s.physics.is_empty() {
+        if matches!(
+            s.solver.mechanics,
+            Mechanics::Off | Mechanics::QuasiStatic { .. }
+        ) && s.physics.is_empty()
+        {
             self.err(
                 "solver.mechanics",
-                "only a scene with physics (a `physics` section) may turn dynamics off",
+                "only a scene with physics (a `physics` section) may turn mechanics off or make it quasi-static (implicit mechanics needs none)",
             );
         }
         built.into_iter().map(|(_, n, p)| (n, p)).collect()

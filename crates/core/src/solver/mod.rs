@@ -5,7 +5,8 @@
 //!   stress update, physics operators); `setup` builds it from a validated scene.
 //! - `mode` is the [`StepMode`](mode::StepMode) trait; each mode is a file of its own:
 //!   `explicit` (the explicit MPM step, USL/USF/MUSL), `quasi_static` (physics, then damped
-//!   explicit relaxation to equilibrium), `mechanics_off` (physics operators only).
+//!   explicit relaxation to equilibrium), `implicit` (Newton–Krylov equilibrium or Newmark
+//!   dynamics per step, `implicit/`), `mechanics_off` (physics operators only).
 //! - `run_loop` is the run loop every mode shares: time step choice, output frames, the
 //!   reference, stop checks; `output_staging` copies particle fields into output order.
 
@@ -13,6 +14,7 @@ mod binning;
 mod explicit;
 mod grid_to_particle;
 pub mod grid_update;
+mod implicit;
 mod interpolation;
 mod mechanics_off;
 mod mode;

@@ -1,10 +1,11 @@
 //! Time-integration modes: how a run advances one step. Every mode drives the same
 //! [`Simulation`] state and stages; the run loop (`run_loop`) is shared. A new mode
-//! (implicit, total-Lagrangian, staged) is a new file implementing [`StepMode`] and one arm
+//! (total-Lagrangian, staged) is a new file implementing [`StepMode`] and one arm
 //! in [`for_scene`].
 
 use super::DimensionDispatch;
 use super::explicit::Explicit;
+use super::implicit::Implicit;
 use super::mechanics_off::MechanicsOff;
 use super::quasi_static::QuasiStatic;
 use super::simulation::Simulation;
@@ -38,5 +39,6 @@ where
             tolerance,
             damping,
         }),
+        Mechanics::Implicit(settings) => Box::new(Implicit::<D>::new(settings)),
     }
 }

@@ -31,6 +31,21 @@ pub(crate) struct StressScratch<const D: usize> {
     mechanical: Vec<Matrix<D>>,
     /// Free strain at the last update.
     applied: Vec<f64>,
+    /// Largest wave speed of each material group at the last update (implicit mechanics
+    /// scales its preconditioner with it).
+    pub group_wave_speed: Vec<f64>,
+}
+
+impl<const D: usize> StressScratch<D> {
+    /// Free strain each particle's stress had at the last update (empty without one).
+    pub fn applied(&self) -> &[f64] {
+        &self.applied
+    }
+
+    /// The same, to restore it when a step is retried.
+    pub fn applied_mut(&mut self) -> &mut Vec<f64> {
+        &mut self.applied
+    }
 }
 
 /// Runs every material on its particles.
@@ -85,7 +100,8 @@ where
         free_strain_work,
         ..StressStats::default()
     };
-    for group in groups.iter_mut() {
+    scratch.group_wave_speed.resize(groups.len(), 0.0);
+    for (g, group) in groups.iter_mut().enumerate() {
         let range = group.range.clone();
         let count = range.len();
         let material = group.material.clone();
@@ -158,6 +174,7 @@ where
                 non_finite: ParticleFault::first(a.non_finite, b.non_finite),
                 free_strain_work: 0.0,
             });
+        scratch.group_wave_speed[g] = stats.batch.max_wave_speed;
         total.batch = total.batch.merge(stats.batch);
         total.non_finite = ParticleFault::first(total.non_finite, stats.non_finite);
     }

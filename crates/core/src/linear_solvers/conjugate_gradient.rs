@@ -24,11 +24,42 @@ pub struct Work<'a> {
     pub ap: &'a mut [f64],
 }
 
-/// Solves `A x = b` for the free nodes (`inverse_diagonal[i] > 0`), starting from `x`.
-/// Stops when ‖r‖ ≤ `tolerance`·‖b‖ on the free nodes.
+/// Solves `A x = b` for the free nodes (`inverse_diagonal[i] > 0`), starting from `x`,
+/// with Jacobi preconditioning. Stops when ‖r‖ ≤ `tolerance`·‖b‖ on the free nodes.
 pub fn solve(
-    mut apply: impl FnMut(&[f64], &mut [f64]),
+    apply: impl FnMut(&[f64], &mut [f64]),
     inverse_diagonal: &[f64],
+    b: &[f64],
+    x: &mut [f64],
+    work: Work<'_>,
+    tolerance: f64,
+    max_iterations: u32,
+) -> Solve {
+    let jacobi = |r: &[f64], z: &mut [f64]| {
+        for ((z, r), d) in z.iter_mut().zip(r).zip(inverse_diagonal) {
+            *z = r * d;
+        }
+    };
+    solve_preconditioned(
+        apply,
+        jacobi,
+        inverse_diagonal,
+        b,
+        x,
+        work,
+        tolerance,
+        max_iterations,
+    )
+}
+
+/// [`solve`] with any symmetric positive definite preconditioner `precondition(r, z)`
+/// (z = M⁻¹ r); `free[i] > 0` marks the free unknowns (the preconditioner must leave the
+/// others at zero).
+#[allow(clippy::too_many_arguments)]
+pub fn solve_preconditioned(
+    mut apply: impl FnMut(&[f64], &mut [f64]),
+    mut precondition: impl FnMut(&[f64], &mut [f64]),
+    free: &[f64],
     b: &[f64],
     x: &mut [f64],
     work: Work<'_>,
@@ -39,15 +70,15 @@ pub fn solve(
     apply(x, ap);
     let mut b_norm2 = 0.0;
     for i in 0..x.len() {
-        if inverse_diagonal[i] > 0.0 {
+        if free[i] > 0.0 {
             r[i] = b[i] - ap[i];
             b_norm2 += b[i] * b[i];
         } else {
             r[i] = 0.0;
         }
-        z[i] = r[i] * inverse_diagonal[i];
-        p[i] = z[i];
     }
+    precondition(r, z);
+    p.copy_from_slice(z);
     let target2 = tolerance * tolerance * b_norm2.max(1e-300);
     let mut rz: f64 = r.iter().zip(z.iter()).map(|(a, b)| a * b).sum();
     let mut r2: f64 = r.iter().map(|a| a * a).sum();
@@ -61,16 +92,15 @@ pub fn solve(
         }
         let alpha = rz / pap;
         r2 = 0.0;
-        let mut rz_new = 0.0;
         for i in 0..x.len() {
-            if inverse_diagonal[i] > 0.0 {
+            if free[i] > 0.0 {
                 x[i] += alpha * p[i];
                 r[i] -= alpha * ap[i];
-                z[i] = r[i] * inverse_diagonal[i];
                 r2 += r[i] * r[i];
-                rz_new += r[i] * z[i];
             }
         }
+        precondition(r, z);
+        let rz_new: f64 = r.iter().zip(z.iter()).map(|(a, b)| a * b).sum();
         let beta = rz_new / rz;
         rz = rz_new;
         for i in 0..x.len() {

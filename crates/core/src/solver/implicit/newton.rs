@@ -1,0 +1,281 @@
+//! Newton iterations on the grid displacement increment with a matrix-free Krylov solve
+//! per iteration (the tangent applied as a directional difference of the residual:
+//! Jacobian-free Newton–Krylov, so every material plugin works without a tangent of its
+//! own), Jacobi preconditioning and a backtracking line search.
+
+use super::super::DimensionDispatch;
+use super::super::simulation::Simulation;
+use super::residual::{Evaluation, Inertia, evaluate};
+use super::workspace::Workspace;
+use crate::kernels::Kernel;
+use crate::linear_solvers::conjugate_gradient::{self, Work};
+use crate::linear_solvers::gmres::{self, GmresWork};
+use crate::linear_solvers::sparse_cholesky::SparseCholesky;
+use crate::material::Material;
+use crate::scene::ImplicitSettings;
+
+/// Vectors of the Newton and Krylov iterations, sized to the unknowns.
+#[derive(Default)]
+pub(super) struct NewtonVectors {
+    pub du: Vec<f64>,
+    pub residual: Vec<f64>,
+    pub trial: Vec<f64>,
+    pub trial_residual: Vec<f64>,
+    pub direction: Vec<f64>,
+    pub rhs: Vec<f64>,
+    pub perturbed: Vec<f64>,
+    pub perturbed_residual: Vec<f64>,
+    pub cg: [Vec<f64>; 4],
+    pub gmres: Option<GmresWork>,
+}
+
+impl NewtonVectors {
+    pub fn resize(&mut self, n: usize, restart: Option<usize>) {
+        for v in [
+            &mut self.du,
+            &mut self.residual,
+            &mut self.trial,
+            &mut self.trial_residual,
+            &mut self.direction,
+            &mut self.rhs,
+            &mut self.perturbed,
+            &mut self.perturbed_residual,
+        ] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        for v in &mut self.cg {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        if let Some(m) = restart
+            && self.gmres.as_ref().is_none_or(|g| g.len() != n)
+        {
+            self.gmres = Some(GmresWork::new(n, m));
+        }
+    }
+}
+
+/// How a Newton solve ended.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct NewtonResult {
+    pub converged: bool,
+    pub iterations: u32,
+    pub krylov_iterations: u32,
+    /// Residual norm and the scale it was judged against at the end.
+    pub residual: f64,
+    pub scale: f64,
+    /// Unknown with the largest residual at the end.
+    pub worst: usize,
+    pub last: Option<Evaluation>,
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Solves R(Δu) = 0 starting from `vectors.du`; the particles hold F and stress of the
+/// returned increment when it converged.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve<const D: usize, K: Kernel>(
+    sim: &mut Simulation<D, K>,
+    work: &mut Workspace<D>,
+    vectors: &mut NewtonVectors,
+    settings: &ImplicitSettings,
+    use_cg: bool,
+    mut factored: Option<SparseCholesky>,
+    dt: f64,
+    inertia: Option<Inertia>,
+) -> NewtonResult
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    let n = work.len();
+    let mut result = NewtonResult {
+        converged: false,
+        iterations: 0,
+        krylov_iterations: 0,
+        residual: f64::INFINITY,
+        scale: 0.0,
+        worst: 0,
+        last: None,
+    };
+    let NewtonVectors {
+        du,
+        residual,
+        trial,
+        trial_residual,
+        direction,
+        rhs,
+        perturbed,
+        perturbed_residual,
+        cg,
+        gmres: gmres_work,
+    } = vectors;
+    let mut eval = evaluate(sim, work, du, dt, inertia, residual);
+    if !eval.valid {
+        return result;
+    }
+    let external = norm(&work.external);
+    let force0 = inertia.map_or(0.0, |_| norm(&work.force0));
+    let mut scale = external
+        .max(force0)
+        .max(eval.force_scale)
+        .max(norm(residual));
+    let mut energy0 = 0.0;
+    let mut r_norm = norm(residual);
+    let dx = sim.grid.dx;
+    for iteration in 0..settings.max_newton_iterations {
+        result.iterations = iteration;
+        scale = scale.max(eval.force_scale);
+        if r_norm <= settings.force_tolerance * scale {
+            result.converged = true;
+            break;
+        }
+        if iteration > 0 && factored.is_some() {
+            factored = super::preconditioner::factor(sim, work, inertia).or(factored);
+        }
+        let factored = factored.as_ref();
+        // Krylov: J δ = −R, J v ≈ (R(Δu + εv) − R(Δu)) / ε.
+        for (b, r) in rhs.iter_mut().zip(residual.iter()) {
+            *b = -r;
+        }
+        direction.fill(0.0);
+        let base: &[f64] = residual;
+        let du_now: &[f64] = du;
+        let mut invalid = false;
+        let inverse_diagonal = std::mem::take(&mut work.inverse_diagonal);
+        let mut apply = |v: &[f64], out: &mut [f64]| {
+            let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            if largest == 0.0 {
+                out.fill(0.0);
+                return;
+            }
+            let eps = 1e-7 * dx / largest;
+            for i in 0..n {
+                perturbed[i] = du_now[i] + eps * v[i] * work.mask[i];
+            }
+            let e = evaluate(sim, work, perturbed, dt, inertia, perturbed_residual);
+            if !e.valid {
+                invalid = true;
+            }
+            for i in 0..n {
+                out[i] = (perturbed_residual[i] - base[i]) / eps;
+            }
+            super::residual::project(work, out);
+        };
+        // Inexact Newton: no need to solve below a tenth of the convergence target (the
+        // finite-difference product is not more accurate than that anyway).
+        let tolerance = settings
+            .krylov_tolerance
+            .max(0.1 * settings.force_tolerance * scale / r_norm.max(1e-300))
+            .min(0.5);
+        let precondition = |r: &[f64], z: &mut [f64]| match factored {
+            Some(chol) => {
+                for ((z, r), d) in z.iter_mut().zip(r).zip(&inverse_diagonal) {
+                    *z = if *d > 0.0 { *r } else { 0.0 };
+                }
+                chol.solve_in_place(z);
+                for (z, d) in z.iter_mut().zip(&inverse_diagonal) {
+                    if *d <= 0.0 {
+                        *z = 0.0;
+                    }
+                }
+            }
+            None => {
+                for ((z, r), d) in z.iter_mut().zip(r).zip(&inverse_diagonal) {
+                    *z = r * d;
+                }
+            }
+        };
+        let solve = if use_cg {
+            let [r, z, p, ap] = cg;
+            conjugate_gradient::solve_preconditioned(
+                &mut apply,
+                precondition,
+                &inverse_diagonal,
+                rhs,
+                direction,
+                Work { r, z, p, ap },
+                tolerance,
+                settings.max_krylov_iterations,
+            )
+        } else {
+            let g = gmres_work
+                .as_mut()
+                .expect("GMRES work space sized in prepare");
+            gmres::solve_preconditioned(
+                &mut apply,
+                precondition,
+                &inverse_diagonal,
+                rhs,
+                direction,
+                g,
+                tolerance,
+                settings.max_krylov_iterations,
+            )
+        };
+        work.inverse_diagonal = inverse_diagonal;
+        result.krylov_iterations += solve.iterations;
+        if invalid || direction.iter().any(|v| !v.is_finite()) {
+            break;
+        }
+        super::residual::project(work, direction);
+        let energy: f64 = direction
+            .iter()
+            .zip(residual.iter())
+            .map(|(a, b)| a * b)
+            .sum::<f64>()
+            .abs();
+        if iteration == 0 {
+            energy0 = energy;
+        }
+        // Backtracking line search on the residual norm.
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        for _ in 0..6 {
+            for i in 0..n {
+                trial[i] = du[i] + alpha * direction[i];
+            }
+            let e = evaluate(sim, work, trial, dt, inertia, trial_residual);
+            let t_norm = norm(trial_residual);
+            if e.valid && t_norm <= (1.0 - 1e-4 * alpha) * r_norm {
+                std::mem::swap(du, trial);
+                std::mem::swap(residual, trial_residual);
+                r_norm = t_norm;
+                eval = e;
+                accepted = true;
+                break;
+            }
+            alpha *= 0.5;
+        }
+        if !accepted {
+            // The particles hold a rejected trial: put back the last accepted state.
+            eval = evaluate(sim, work, du, dt, inertia, residual);
+            break;
+        }
+        if iteration > 0 && energy <= settings.energy_tolerance * energy0 {
+            result.iterations = iteration + 1;
+            result.converged = true;
+            break;
+        }
+        result.iterations = iteration + 1;
+    }
+    if !result.converged && r_norm <= settings.force_tolerance * scale.max(eval.force_scale) {
+        result.converged = true;
+    }
+    result.residual = r_norm;
+    result.scale = scale;
+    result.worst = residual
+        .iter()
+        .enumerate()
+        .fold(
+            (0, 0.0f64),
+            |(w, m), (i, v)| {
+                if v.abs() > m { (i, v.abs()) } else { (w, m) }
+            },
+        )
+        .0;
+    result.last = Some(eval);
+    result
+}
