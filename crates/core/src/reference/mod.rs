@@ -304,9 +304,14 @@ mod tests {
         let core: Vec<&str> = registry.reference_types().collect();
         assert_eq!(
             core,
-            ["cantilever_elastica", "poiseuille_startup", "vibrating_bar"]
+            [
+                "bimaterial_strip",
+                "cantilever_elastica",
+                "poiseuille_startup",
+                "vibrating_bar"
+            ]
         );
-        assert_eq!(registry.references_of(CORE).len(), 3);
+        assert_eq!(registry.references_of(CORE).len(), 4);
         let catalogue = registry.catalogue();
         assert!(catalogue["core"]["references"]["vibrating_bar"]["properties"]["axis"].is_object());
         match registry.register(Box::new(Clash)) {
