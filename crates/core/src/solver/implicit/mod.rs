@@ -207,7 +207,7 @@ impl<const D: usize> Implicit<D> {
             self.vectors.trial = f_int;
         }
         self.preconditioner(sim, inertia);
-        let factored = preconditioner::factor(sim, &mut self.work, inertia);
+        let factored = preconditioner::factor(sim, &mut self.work, inertia, dt);
         if factored.is_some() {
             sim.report
                 .record_max("implicit.factored_preconditioner", 1.0);

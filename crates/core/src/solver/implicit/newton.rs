@@ -1,11 +1,11 @@
 //! Newton iterations on the grid displacement increment with a matrix-free Krylov solve
-//! per iteration (the tangent applied as a directional difference of the residual:
-//! Jacobian-free Newton–Krylov, so every material plugin works without a tangent of its
-//! own), Jacobi preconditioning and a backtracking line search.
+//! per iteration (the tangent applied through each particle's directional stress
+//! difference: Jacobian-free Newton–Krylov, so every material plugin works without a
+//! tangent of its own), a factored elastic preconditioner and a backtracking line search.
 
 use super::super::DimensionDispatch;
 use super::super::simulation::Simulation;
-use super::residual::{Evaluation, Inertia, evaluate};
+use super::residual::{Evaluation, Inertia, evaluate, tangent_product};
 use super::workspace::Workspace;
 use crate::kernels::Kernel;
 use crate::linear_solvers::conjugate_gradient::{self, Work};
@@ -23,8 +23,6 @@ pub(super) struct NewtonVectors {
     pub trial_residual: Vec<f64>,
     pub direction: Vec<f64>,
     pub rhs: Vec<f64>,
-    pub perturbed: Vec<f64>,
-    pub perturbed_residual: Vec<f64>,
     pub cg: [Vec<f64>; 4],
     pub gmres: Option<GmresWork>,
 }
@@ -38,8 +36,6 @@ impl NewtonVectors {
             &mut self.trial_residual,
             &mut self.direction,
             &mut self.rhs,
-            &mut self.perturbed,
-            &mut self.perturbed_residual,
         ] {
             v.clear();
             v.resize(n, 0.0);
@@ -107,8 +103,6 @@ where
         trial_residual,
         direction,
         rhs,
-        perturbed,
-        perturbed_residual,
         cg,
         gmres: gmres_work,
     } = vectors;
@@ -118,13 +112,32 @@ where
     }
     let external = norm(&work.external);
     let force0 = inertia.map_or(0.0, |_| norm(&work.force0));
+    // A floor on the force scale: the force of a strain of 1e-3 in the stiffest material on
+    // one cell face, so a nearly unloaded step is judged on an absolute scale (equilibrium
+    // to a strain of about 1e-9 at the default tolerance) and not on its own round-off.
+    let stiffest = sim
+        .particles
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(g, group)| {
+            let c = sim
+                .stress_scratch
+                .group_wave_speed
+                .get(g)
+                .copied()
+                .unwrap_or(0.0);
+            group.material.density() * c * c
+        })
+        .fold(0.0f64, f64::max);
+    let floor = 1e-3 * stiffest * sim.grid.dx.powi(D as i32 - 1);
     let mut scale = external
         .max(force0)
         .max(eval.force_scale)
-        .max(norm(residual));
+        .max(norm(residual))
+        .max(floor);
     let mut energy0 = 0.0;
     let mut r_norm = norm(residual);
-    let dx = sim.grid.dx;
     for iteration in 0..settings.max_newton_iterations {
         result.iterations = iteration;
         scale = scale.max(eval.force_scale);
@@ -133,7 +146,7 @@ where
             break;
         }
         if iteration > 0 && factored.is_some() {
-            factored = super::preconditioner::factor(sim, work, inertia).or(factored);
+            factored = super::preconditioner::factor(sim, work, inertia, dt).or(factored);
         }
         let factored = factored.as_ref();
         // Krylov: J δ = −R, J v ≈ (R(Δu + εv) − R(Δu)) / ε.
@@ -141,28 +154,14 @@ where
             *b = -r;
         }
         direction.fill(0.0);
-        let base: &[f64] = residual;
-        let du_now: &[f64] = du;
-        let mut invalid = false;
         let inverse_diagonal = std::mem::take(&mut work.inverse_diagonal);
+        super::residual::linearise_at(sim, work);
         let mut apply = |v: &[f64], out: &mut [f64]| {
-            let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            if largest == 0.0 {
+            if v.iter().all(|x| *x == 0.0) {
                 out.fill(0.0);
                 return;
             }
-            let eps = 1e-7 * dx / largest;
-            for i in 0..n {
-                perturbed[i] = du_now[i] + eps * v[i] * work.mask[i];
-            }
-            let e = evaluate(sim, work, perturbed, dt, inertia, perturbed_residual);
-            if !e.valid {
-                invalid = true;
-            }
-            for i in 0..n {
-                out[i] = (perturbed_residual[i] - base[i]) / eps;
-            }
-            super::residual::project(work, out);
+            tangent_product(sim, work, v, dt, inertia, out);
         };
         // Inexact Newton: no need to solve below a tenth of the convergence target (the
         // finite-difference product is not more accurate than that anyway).
@@ -217,7 +216,7 @@ where
         };
         work.inverse_diagonal = inverse_diagonal;
         result.krylov_iterations += solve.iterations;
-        if invalid || direction.iter().any(|v| !v.is_finite()) {
+        if direction.iter().any(|v| !v.is_finite()) {
             break;
         }
         super::residual::project(work, direction);

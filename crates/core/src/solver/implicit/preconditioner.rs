@@ -1,6 +1,7 @@
 //! The preconditioner of the implicit solver's Krylov iterations: an estimate of the
 //! tangent, K = Σ_p Vₙ (Bᵀ C B + the initial-stress term ∇wₐ·σ∇w_b I) with an isotropic C
-//! (λ, μ from each material group's wave speed with ν = 0.3), plus the Newmark mass term,
+//! (each particle's λ, μ measured from its material's own stress update), plus the Newmark
+//! mass term,
 //! assembled at every Newton iteration from the particles' current stress and factored by a
 //! sparse Cholesky. The initial-stress term matters for thin, prestressed bodies (a
 //! bimaterial strip's bending mode is as soft as its geometric stiffness); when it makes the
@@ -19,9 +20,6 @@ use faer::sparse::Triplet;
 
 /// Most matrix entries (before summing duplicates) the assembly may make (~24 bytes each).
 const MAX_TRIPLETS: usize = 20_000_000;
-
-/// Poisson's ratio assumed to split a group's P-wave modulus ρc² into λ and μ.
-const ASSUMED_POISSON: f64 = 0.3;
 
 /// The unknown a component maps to (following ghost mirrors) with its sign, or `None` when
 /// it is fixed.
@@ -45,13 +43,22 @@ fn target<const D: usize>(work: &Workspace<D>, mut dof: usize, d: usize) -> Opti
 /// Assembles and factors the elastic estimate; `None` when it is too large or not
 /// positive definite (the caller then uses Jacobi).
 pub(super) fn factor<const D: usize, K: Kernel>(
-    sim: &Simulation<D, K>,
+    sim: &mut Simulation<D, K>,
     work: &mut Workspace<D>,
     inertia: Option<Inertia>,
+    dt: f64,
 ) -> Option<SparseCholesky>
 where
     dyn Material: DimensionDispatch<D>,
 {
+    let n = work.len();
+    let stencil = work.interp.stencil;
+    let estimate = sim.particles.len() * stencil * stencil * D * D / 2 + n;
+    if n == 0 || estimate > MAX_TRIPLETS {
+        return None;
+    }
+    super::residual::linearise_at(sim, work);
+    super::residual::probe_moduli(sim, work, dt);
     assemble_and_factor(sim, work, inertia, true)
         .or_else(|| assemble_and_factor(sim, work, inertia, false))
 }
@@ -66,25 +73,11 @@ where
     dyn Material: DimensionDispatch<D>,
 {
     let n = work.len();
-    let stencil = work.interp.stencil;
-    let estimate = sim.particles.len() * stencil * stencil * D * D / 2 + n;
-    if n == 0 || estimate > MAX_TRIPLETS {
-        return None;
-    }
     let mut triplets = std::mem::take(&mut work.triplets);
     triplets.clear();
-    for (g, group) in sim.particles.groups.iter().enumerate() {
-        let c = sim
-            .stress_scratch
-            .group_wave_speed
-            .get(g)
-            .copied()
-            .unwrap_or(0.0);
-        let modulus = group.material.density() * c * c;
-        let nu = ASSUMED_POISSON;
-        let mu = modulus * (1.0 - 2.0 * nu) / (2.0 * (1.0 - nu));
-        let lambda = modulus - 2.0 * mu;
-        for p in group.range.clone() {
+    {
+        for p in 0..sim.particles.len() {
+            let [lambda, mu] = work.moduli[p];
             let v = work.volume_n[p];
             let stress = sim.particles.stress[p];
             let entries = work.interp.entries(p);

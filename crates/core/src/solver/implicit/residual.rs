@@ -153,12 +153,26 @@ fn scatter<const D: usize, K: Kernel>(
 where
     dyn Material: DimensionDispatch<D>,
 {
-    let n = sim.particles.len();
-    let threads = work.buffers.len();
     let stress = &sim.particles.stress;
-    let (interp, entry_dof, grad_du, volume_n) =
-        (&work.interp, &work.entry_dof, &work.grad_du, &work.volume_n);
+    let grad_du = std::mem::take(&mut work.grad_du);
     let identity = Matrix::<D>::identity();
+    let scale = scatter_with(work, sim.particles.len(), out, |p| {
+        stress[p] * cofactor(&(identity + grad_du[p]))
+    });
+    work.grad_du = grad_du;
+    scale
+}
+
+/// Scatters Σ_p Vₙ P_p ∇w into `out` (unfolded) for the first Piola stress `piola(p)`,
+/// threads writing buffers of their own; returns the norm of the individual contributions.
+fn scatter_with<const D: usize>(
+    work: &mut Workspace<D>,
+    n: usize,
+    out: &mut [f64],
+    piola: impl Fn(usize) -> Matrix<D> + Sync,
+) -> f64 {
+    let threads = work.buffers.len();
+    let (interp, entry_dof, volume_n) = (&work.interp, &work.entry_dof, &work.volume_n);
     let scale2: f64 = work
         .buffers
         .par_iter_mut()
@@ -167,8 +181,14 @@ where
             buffer.fill(0.0);
             let per = n.div_ceil(threads);
             let mut scale2 = 0.0;
-            for p in t * per..((t + 1) * per).min(n) {
-                let piola = stress[p] * cofactor(&(identity + grad_du[p])) * volume_n[p];
+            let range = (t * per).min(n)..((t + 1) * per).min(n);
+            for (p, volume) in volume_n
+                .iter()
+                .enumerate()
+                .take(range.end)
+                .skip(range.start)
+            {
+                let piola = piola(p) * *volume;
                 for e in interp.entries(p) {
                     let f = piola * interp.gradient[e];
                     let k = entry_dof[e] as usize * D;
@@ -188,6 +208,127 @@ where
         }
     }
     scale2.sqrt()
+}
+
+/// The derivative of the cofactor matrix at `a` in the direction `g` (linear in 2D,
+/// quadratic in 3D: cof(a + g) = cof(a) + dcof + cof(g)).
+fn cofactor_derivative<const D: usize>(a: &Matrix<D>, g: &Matrix<D>) -> Matrix<D> {
+    if D == 2 {
+        cofactor(g)
+    } else {
+        cofactor(&(a + g)) - cofactor(a) - cofactor(g)
+    }
+}
+
+/// Saves the particles' stress at the current iterate: the point the tangent products
+/// linearise about (∇Δu there is in `work.grad_du`).
+pub(super) fn linearise_at<const D: usize, K: Kernel>(
+    sim: &Simulation<D, K>,
+    work: &mut Workspace<D>,
+) where
+    dyn Material: DimensionDispatch<D>,
+{
+    work.stress_cur.clear();
+    work.stress_cur.extend_from_slice(&sim.particles.stress);
+}
+
+/// The tangent applied to a direction `v`: J v = ∂R/∂Δu · v at the iterate saved by
+/// [`linearise_at`]. The stress change of each particle is a directional difference of its
+/// material's own update, with a step scaled to that particle's δF (so weakly and strongly
+/// deformed particles are both resolved); the geometric part (the change of the cofactor) is
+/// exact.
+pub(super) fn tangent_product<const D: usize, K: Kernel>(
+    sim: &mut Simulation<D, K>,
+    work: &mut Workspace<D>,
+    v: &[f64],
+    dt: f64,
+    inertia: Option<Inertia>,
+    out: &mut [f64],
+) where
+    dyn Material: DimensionDispatch<D>,
+{
+    // The mirrored direction goes through `full_v`; `full` keeps the iterate.
+    std::mem::swap(&mut work.full, &mut work.full_v);
+    mirror(work, v);
+    std::mem::swap(&mut work.full, &mut work.full_v);
+    let n = sim.particles.len();
+    let identity = Matrix::<D>::identity();
+    let rate = !sim.particles.velocity_gradient.is_empty();
+    work.grad_v.resize(n, Matrix::<D>::zeros());
+    work.step_of.resize(n, 0.0);
+    {
+        let f_out = SharedSlice::new(&mut sim.particles.deformation_gradient);
+        let l_out = SharedSlice::new(&mut sim.particles.velocity_gradient);
+        let g_out = SharedSlice::new(&mut work.grad_v);
+        let e_out = SharedSlice::new(&mut work.step_of);
+        let (interp, entry_dof, full_v, f_n, grad_du) = (
+            &work.interp,
+            &work.entry_dof,
+            &work.full_v,
+            &work.f_n,
+            &work.grad_du,
+        );
+        (0..chunk_count(n)).into_par_iter().for_each(|chunk| {
+            for p in chunk_range(chunk, n) {
+                let mut g = Matrix::<D>::zeros();
+                for e in interp.entries(p) {
+                    let k = entry_dof[e] as usize * D;
+                    let dw = interp.gradient[e];
+                    for a in 0..D {
+                        for b in 0..D {
+                            g[(a, b)] += full_v[k + a] * dw[b];
+                        }
+                    }
+                }
+                let largest = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                let eps = if largest > 0.0 { 1e-7 / largest } else { 0.0 };
+                let a = identity + grad_du[p];
+                // SAFETY: chunks are disjoint particle ranges.
+                unsafe {
+                    *f_out.get(p) = (a + g * eps) * f_n[p];
+                    *g_out.get(p) = g;
+                    *e_out.get(p) = eps;
+                    if rate {
+                        *l_out.get(p) = (grad_du[p] + g * eps) / dt;
+                    }
+                }
+            }
+        });
+    }
+    work.restore_state(sim);
+    update_stress(&mut sim.particles, dt, &mut sim.stress_scratch);
+    let stress = &sim.particles.stress;
+    let (grad_v, step_of, grad_du, stress_cur) = (
+        std::mem::take(&mut work.grad_v),
+        std::mem::take(&mut work.step_of),
+        std::mem::take(&mut work.grad_du),
+        std::mem::take(&mut work.stress_cur),
+    );
+    scatter_with(work, n, out, |p| {
+        let eps = step_of[p];
+        if eps == 0.0 {
+            return Matrix::<D>::zeros();
+        }
+        let a = identity + grad_du[p];
+        let d_stress = (stress[p] - stress_cur[p]) / eps;
+        d_stress * cofactor(&a) + stress_cur[p] * cofactor_derivative(&a, &grad_v[p])
+    });
+    work.grad_v = grad_v;
+    work.step_of = step_of;
+    work.grad_du = grad_du;
+    work.stress_cur = stress_cur;
+    fold::<D>(&work.mirrors, out);
+    if let Some(c) = inertia {
+        for k in 0..work.node_of_dof.len() {
+            let m = work.mass[k];
+            if m > 0.0 {
+                for d in 0..D {
+                    out[k * D + d] += c.c_u * m * v[k * D + d];
+                }
+            }
+        }
+    }
+    project(work, out);
 }
 
 /// The internal force of the particles' current stress with no increment (∇Δu = 0),
@@ -252,5 +393,60 @@ where
         stress,
         force_scale,
         valid: finite && stress.non_finite.is_none(),
+    }
+}
+
+/// Measures each particle's isotropic tangent moduli (λ, μ) at the iterate saved by
+/// [`linearise_at`] with two directional stress differences of its material's own update
+/// (a volumetric and a shear δF), into `work.moduli`: the preconditioner then sees what
+/// every law does (a liquid's vanishing shear stiffness, a stiff die) without asking the
+/// plugins for a tangent.
+pub(super) fn probe_moduli<const D: usize, K: Kernel>(
+    sim: &mut Simulation<D, K>,
+    work: &mut Workspace<D>,
+    dt: f64,
+) where
+    dyn Material: DimensionDispatch<D>,
+{
+    let n = sim.particles.len();
+    let identity = Matrix::<D>::identity();
+    let mut shear = Matrix::<D>::zeros();
+    shear[(0, 1)] = 1.0;
+    shear[(1, 0)] = 1.0;
+    const EPS: f64 = 1e-7;
+    work.moduli.resize(n, [0.0; 2]);
+    for (probe, g) in [identity, shear].into_iter().enumerate() {
+        let rate = !sim.particles.velocity_gradient.is_empty();
+        for p in 0..n {
+            let a = identity + work.grad_du[p];
+            sim.particles.deformation_gradient[p] = (a + g * EPS) * work.f_n[p];
+            if rate {
+                sim.particles.velocity_gradient[p] = (work.grad_du[p] + g * EPS) / dt;
+            }
+        }
+        work.restore_state(sim);
+        update_stress(&mut sim.particles, dt, &mut sim.stress_scratch);
+        for p in 0..n {
+            let d = (sim.particles.stress[p] - work.stress_cur[p]) / EPS;
+            if probe == 0 {
+                // δσ = (Dλ + 2μ) ε I
+                work.moduli[p][0] = d[(0, 0)];
+            } else {
+                // δσ₀₁ = 2μ ε; a shear stiffness of at least 1% of the volumetric one keeps
+                // the estimate factorable where a law has next to none (a liquid).
+                let mu = (0.5 * d[(0, 1)]).max(0.01 * work.moduli[p][0].max(0.0));
+                let lambda = ((work.moduli[p][0] - 2.0 * mu) / D as f64).max(-2.0 * mu / D as f64);
+                work.moduli[p] = [lambda, mu];
+            }
+        }
+    }
+    // Back to the iterate (the material state is restored before every later update).
+    let rate = !sim.particles.velocity_gradient.is_empty();
+    for p in 0..n {
+        sim.particles.deformation_gradient[p] = (identity + work.grad_du[p]) * work.f_n[p];
+        sim.particles.stress[p] = work.stress_cur[p];
+        if rate {
+            sim.particles.velocity_gradient[p] = work.grad_du[p] / dt;
+        }
     }
 }

@@ -70,6 +70,15 @@ pub(super) struct Workspace<const D: usize> {
     pub inverse_diagonal: Vec<f64>,
     /// Displacement increment with the ghosts mirrored (scratch of an evaluation).
     pub full: Vec<f64>,
+    /// A Krylov direction with the ghosts mirrored (scratch of a tangent product).
+    pub full_v: Vec<f64>,
+    /// Stress at the iterate the tangent linearises about.
+    pub stress_cur: Vec<Matrix<D>>,
+    /// Gradient of the direction, and the difference step, per particle (tangent product).
+    pub grad_v: Vec<Matrix<D>>,
+    pub step_of: Vec<f64>,
+    /// Each particle's measured isotropic tangent (λ, μ), for the preconditioner.
+    pub moduli: Vec<[f64; 2]>,
     /// Per-thread force buffers of the scatter.
     pub buffers: Vec<Vec<f64>>,
     /// Increment gradient ∇Δu of each particle at the last evaluation.
@@ -159,6 +168,7 @@ impl<const D: usize> Workspace<D> {
             &mut self.force0,
             &mut self.inverse_diagonal,
             &mut self.full,
+            &mut self.full_v,
         ] {
             v.clear();
             v.resize(n, 0.0);
