@@ -107,6 +107,80 @@ fn disks_touch_when_their_surfaces_meet_and_rebound() {
 }
 
 #[test]
+fn every_kernel_and_transfer_and_each_law_keeps_the_disks_apart_until_they_touch() {
+    let speed = 0.2 * 2f64.sqrt();
+    let geometric = (0.5 * 2f64.sqrt() - 0.4) / speed;
+    let cell_time = 0.025 / speed;
+    let mut cases: Vec<Vec<String>> = Vec::new();
+    // Not the linear kernel: the two disks invert particles with it (det F <= 0 by 1.6 s)
+    // with or without contact, from its cell-crossing error.
+    for kernel in ["gimp", "bspline2", "bspline3"] {
+        for transfer in ["pic", "flip", "apic"] {
+            cases.push(vec![
+                format!("solver.kernel={kernel}"),
+                format!("solver.transfer={transfer}"),
+            ]);
+        }
+    }
+    cases.push(vec!["solver.mls=true".into()]);
+    cases.push(vec!["contact.pairs[0].law=no_slip".into()]);
+    cases.push(vec![
+        "contact.pairs[0].law={\"friction\": {\"coefficient\": 0.5}}".into(),
+    ]);
+    for sets in cases {
+        let mut o = sets.clone();
+        o.push("solver.end_time=1.6".into());
+        let m = run(&load(&example("two-disks-contact.json"), &o));
+        assert_eq!(
+            m.outcome,
+            Some(Outcome::Finished),
+            "{sets:?}: {:?}",
+            m.diagnostic
+        );
+        let start = contact_start(&m);
+        println!("{sets:?}: contact at {start:.4} s (geometric {geometric:.4} s)");
+        // One cell of travel at the closing speed.
+        assert!(
+            (start - geometric).abs() < cell_time,
+            "{sets:?}: contact at {start} s"
+        );
+        assert!(
+            m.max_momentum < 1e-9,
+            "{sets:?}: momentum {}",
+            m.max_momentum
+        );
+    }
+}
+
+#[test]
+fn three_dimensional_spheres_touch_when_their_surfaces_meet() {
+    let scene = json!({
+        "name": "spheres", "dimension": 3,
+        "domain": {"min": [0, 0, 0], "max": [1, 0.5, 0.5], "cell_size": 0.05},
+        "solver": {"end_time": 0.5},
+        "materials": {"rubber": {"type": "neo_hookean", "density": 1000.0,
+                                 "youngs_modulus": 1e5, "poisson_ratio": 0.3}},
+        "bodies": [
+            {"name": "a", "material": "rubber",
+             "shape": {"sphere": {"center": [0.3, 0.25, 0.25], "radius": 0.15}},
+             "velocity": {"uniform": [1.0, 0, 0]}},
+            {"name": "b", "material": "rubber",
+             "shape": {"sphere": {"center": [0.7, 0.25, 0.25], "radius": 0.15}},
+             "velocity": {"uniform": [-1.0, 0, 0]}}],
+        "contact": {"pairs": [{"bodies": ["a", "b"], "law": "frictionless"}]},
+        "output": {"frames": 5, "fields": ["x"]}
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let m = run(&load(&write_scene(dir.path(), "spheres.json", &scene), &[]));
+    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+    // Gap 0.1 m closed at 2 m/s: 0.05 s; one cell of travel is 0.025 s.
+    let start = contact_start(&m);
+    println!("3D: contact at {start:.4} s (geometric 0.05 s)");
+    assert!((start - 0.05).abs() < 0.025, "contact at {start} s");
+    assert!(m.max_momentum < 1e-9, "momentum {}", m.max_momentum);
+}
+
+#[test]
 fn shared_field_disks_interact_before_their_surfaces_meet() {
     // The same disks without contact: one shared field couples them early (the problem
     // the contact section solves). The lower disk slows before the geometric time.
