@@ -98,9 +98,9 @@ fn disks_touch_when_their_surfaces_meet_and_rebound() {
     assert!(last < -0.05, "lower disk after the rebound: vx {last}");
     assert!(m.max_momentum < 1e-9, "momentum {}", m.max_momentum);
     let kinetic = frames.kinetic.last().unwrap() / frames.kinetic[0];
-    let dissipated = m.physics["contact.dissipated"] / frames.kinetic[0];
     println!(
-        "kinetic energy after the rebound / before: {kinetic:.3}; contact loss {dissipated:.3}"
+        "kinetic energy after the rebound / before: {kinetic:.3}; energy drift {:.3}",
+        m.energy_drift
     );
     // Measured 0.77 (the shared-field run of two-disks.json loses 14.7% of its energy).
     assert!(kinetic > 0.7, "kinetic energy after the rebound {kinetic}");
@@ -241,21 +241,51 @@ fn slope(t: &[f64], y: &[f64], from: f64) -> f64 {
 }
 
 fn block_acceleration(angle: f64, mu: f64) -> (f64, Vec<f64>) {
+    let (a, vx, _, _) = block_run(angle, mu);
+    (a, vx)
+}
+
+/// The block's acceleration and velocities, the metrics and the frame times.
+fn block_run(angle: f64, mu: f64) -> (f64, Vec<f64>, Metrics, Vec<f64>) {
     let dir = tempfile::tempdir().unwrap();
     let path = write_scene(dir.path(), "incline.json", &incline(angle, mu));
     let scene = load(&path, &[]);
     let (m, frames) = run_frames(&scene);
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
     let vx = mean_velocity(&frames, &body_range(&scene, 1), 0);
-    (slope(&frames.times, &vx, 0.1), vx)
+    (slope(&frames.times, &vx, 0.1), vx, m, frames.times)
 }
 
 #[test]
 fn block_slides_down_the_incline_with_coulomb_friction() {
     let (angle, mu) = (30.0f64, 0.3);
     let expected = 9.81 * (angle.to_radians().sin() - mu * angle.to_radians().cos());
-    let (a, vx) = block_acceleration(angle, mu);
+    let (a, vx, m, times) = block_run(angle, mu);
     println!("sliding: a = {a:.4} m/s², g(sin θ − μ cos θ) = {expected:.4} m/s²; v {vx:?}");
+    // Friction work: μ m g cos θ times the distance slid (trapezoid rule over the frames);
+    // the block is 0.2 × 0.08 m² of 1000 kg/m³ per metre of thickness.
+    let distance: f64 = times
+        .windows(2)
+        .zip(vx.windows(2))
+        .map(|(t, v)| 0.5 * (v[0] + v[1]) * (t[1] - t[0]))
+        .sum();
+    let expected_work = mu * 16.0 * 9.81 * angle.to_radians().cos() * distance;
+    let work = m.physics["contact.friction_work"];
+    println!(
+        "friction work {work:.4} J, μ m g cos θ · distance = {expected_work:.4} J; energy drift {:.2e}",
+        m.energy_drift
+    );
+    // 2% (measured 0.4%); with the friction work counted as work done on the block the
+    // energy balance closes to 1% (measured 0.14%).
+    assert!(
+        (work - expected_work).abs() < 0.02 * expected_work,
+        "friction work {work} J, expected {expected_work} J"
+    );
+    assert!(
+        m.energy_drift.abs() < 0.01,
+        "energy drift {}",
+        m.energy_drift
+    );
     // 2% of the expected acceleration (measured: 0.03%).
     assert!(
         (a - expected).abs() < 0.02 * expected,

@@ -29,7 +29,7 @@ pub(crate) struct MultiField<const D: usize> {
     pub(crate) volume: Vec<Vec<f64>>,
     /// The law between every two fields.
     pub(crate) laws: FieldLaws,
-    /// Kinetic energy the contact laws removed so far (≥ 0).
+    /// Energy friction dissipated so far (≥ 0; `ContactStats::friction_work`).
     pub(crate) dissipated: f64,
     /// Whether a contact law acted in the last step.
     pub(crate) touching: bool,
