@@ -260,6 +260,55 @@ fn phase_contrast() -> Value {
     })
 }
 
+/// `contrast(ratio)` with frictionless contact between the two blocks.
+fn contact_contrast(ratio: f64) -> Value {
+    let mut s = contrast(ratio);
+    s["bodies"][0]["name"] = json!("soft");
+    s["bodies"][1]["name"] = json!("stiff");
+    s["contact"] = json!({"pairs": [{"bodies": ["soft", "stiff"], "law": "frictionless"}]});
+    s
+}
+
+/// Two steel-like elastic blocks meeting head-on at `speed` m/s relative speed, with
+/// frictionless contact between them.
+fn contact_impact(speed: f64) -> Value {
+    json!({
+        "name": "contact-impact", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [0.1, 0.04], "cell_size": 0.001},
+        "solver": {"end_time": 2e-5, "cfl": 0.3},
+        "materials": {"steel": elastic("neo_hookean", 200e9, 0.29, 7830.0)},
+        "bodies": [
+            {"name": "left", "material": "steel",
+             "shape": {"box": {"min": [0.03, 0.01], "max": [0.049, 0.03]}},
+             "velocity": {"uniform": [0.5 * speed, 0.0]}},
+            {"name": "right", "material": "steel",
+             "shape": {"box": {"min": [0.051, 0.01], "max": [0.07, 0.03]}},
+             "velocity": {"uniform": [-0.5 * speed, 0.0]}}],
+        "contact": {"pairs": [{"bodies": ["left", "right"], "law": "frictionless"}]},
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
+/// A block thrown along an elastic slab under gravity with Coulomb friction `mu`.
+fn contact_sliding(mu: f64) -> Value {
+    json!({
+        "name": "contact-sliding", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1.6, 0.3], "cell_size": 0.02,
+                   "walls": [{"sides": ["y-"], "condition": "stick"}]},
+        "solver": {"end_time": 0.3, "gravity": [0, -9.81]},
+        "materials": {"slab": elastic("linear_elastic", 2e6, 0.3, 2000.0),
+                      "block": elastic("linear_elastic", 1e6, 0.3, 1000.0)},
+        "bodies": [
+            {"name": "slab", "material": "slab", "shape": {"box": {"min": [0, 0], "max": [1.6, 0.1]}}},
+            {"name": "block", "material": "block",
+             "shape": {"box": {"min": [0.2, 0.1], "max": [0.4, 0.18]}},
+             "velocity": {"uniform": [2.0, 0.0]}}],
+        "contact": {"pairs": [{"bodies": ["slab", "block"],
+                               "law": {"friction": {"coefficient": mu}}}]},
+        "output": {"frames": 1, "fields": ["x"]}
+    })
+}
+
 /// Every case of the suite.
 pub fn cases() -> Vec<Case> {
     vec![
@@ -297,6 +346,30 @@ pub fn cases() -> Vec<Case> {
             name: "contrast-1e6",
             what: "stiff block on a soft one, E ratio 1e6",
             scene: contrast(1e6),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "contact-contrast-1e6",
+            what: "stiff block on a soft one, E ratio 1e6, frictionless contact between them",
+            scene: contact_contrast(1e6),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "contact-impact-1000",
+            what: "two elastic steel blocks meeting at 1000 m/s across frictionless contact",
+            scene: contact_impact(1000.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "contact-mu-0",
+            what: "block thrown along an elastic slab at 2 m/s, frictionless contact",
+            scene: contact_sliding(0.0),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "contact-mu-1",
+            what: "block thrown along an elastic slab at 2 m/s, Coulomb friction mu = 1",
+            scene: contact_sliding(1.0),
             expected: Expected::Finished,
         },
         Case {

@@ -46,6 +46,9 @@ pub struct Particles<const D: usize> {
     /// Index of the particle in the output order (particles are reordered for locality;
     /// output is always written in the original order).
     pub id: Vec<u32>,
+    /// Grid velocity field of each particle for contact between bodies (0: the shared
+    /// field); empty unless the scene has a `contact` section.
+    pub contact_field: Vec<u8>,
     /// Contiguous ranges of particles sharing a material.
     pub groups: Vec<MaterialGroup>,
     /// Scalar fields the scene's physics operators created (empty without physics).
@@ -82,6 +85,7 @@ impl<const D: usize> Particles<D> {
                 + self.velocity_gradient.capacity())
                 * m
             + self.id.capacity() * 4
+            + self.contact_field.capacity()
             + state
             + self.shared.bytes()
     }

@@ -270,6 +270,7 @@ pub fn test_particles<const D: usize>(
         half_size: Vec::new(),
         initial_position: Vec::new(),
         id: (0..n as u32).collect(),
+        contact_field: Vec::new(),
         groups: Vec::new(),
         shared,
     }

@@ -108,7 +108,8 @@ pub struct Estimate {
     pub body_particles: Vec<f64>,
     /// Lattice points visited to fill each body's shape.
     pub body_points: Vec<f64>,
-    /// Grid nodes, padding included (0 when the domain is malformed).
+    /// Grid nodes, padding included (0 when the domain is malformed), of the shared grid and
+    /// of every contact field's grid.
     pub grid_nodes: f64,
 }
 
@@ -229,6 +230,17 @@ pub fn estimate(s: &Scene) -> Estimate {
     e.grid_nodes = (0..dim)
         .map(|a| ((domain.hi[a] - domain.lo[a]) / dx - 1e-9).ceil() + 2.0 * pad + 1.0)
         .product();
+    if let Some(contact) = &s.contact {
+        // Contact gives every named body (and the unnamed ones together) a grid of its own.
+        let mut names: Vec<&str> = contact
+            .pairs
+            .iter()
+            .flat_map(|p| p.bodies.iter().map(String::as_str))
+            .collect();
+        names.sort_unstable();
+        names.dedup();
+        e.grid_nodes *= (names.len() + 2) as f64;
+    }
     for b in &s.bodies {
         let h = dx / f64::from(b.particles_per_cell.clamp(1, 8));
         let region = body_region(&domain, dx, b.clip_to_domain);

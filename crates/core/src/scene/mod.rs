@@ -4,11 +4,12 @@
 //! lies: JSON syntax (line and column), structure (unknown keys, wrong types; via
 //! `serde_path_to_error`), then physics and geometry checks in [`validate`]. Each section's
 //! types and checks share a file (`domain`, `solver_settings`, `body`, `obstacle`,
-//! `output`); [`Scene`], the top level, is here.
+//! `contact`, `output`); [`Scene`], the top level, is here.
 
 mod body;
 mod body_particles;
 mod budget;
+mod contact;
 mod domain;
 mod lattice;
 mod obstacle;
@@ -20,6 +21,7 @@ mod validator;
 pub use body::{Body, InitialVelocity, ParticleFileFormat, Shape};
 pub use body_particles::{BodyParticles, read_csv_particles};
 pub use budget::{Estimate, Limits, estimate};
+pub use contact::{ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};
 pub use domain::{Contact, Domain, Side, Wall};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{Output, StopCriteria};
@@ -59,6 +61,10 @@ pub struct Scene {
     /// Rigid obstacles acting on the grid.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<Obstacle>,
+    /// Contact between bodies: the bodies named here get grid velocity fields of their own
+    /// and a law (frictionless, Coulomb friction, no-slip) where their fields meet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSection>,
     /// Physics beyond mechanics by name (`thermal`, `phase_change`, ...), each provided by a
     /// plugin; run in the order the plugins require (see `mpm plugins`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]

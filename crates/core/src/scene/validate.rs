@@ -159,6 +159,9 @@ impl Validator {
         for (i, o) in s.obstacles.iter().enumerate() {
             o.validate(self, &format!("obstacles[{i}]"));
         }
+        if let Some(contact) = &s.contact {
+            contact.validate(self, s);
+        }
         s.output.validate(self);
         s.stop.validate(self);
     }

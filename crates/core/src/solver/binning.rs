@@ -74,6 +74,25 @@ impl SlabBins {
         }
         self.start[0] = 0;
     }
+
+    /// Splits these bins by contact field: `out[f]` gets, slab by slab and in the same
+    /// order, the particles `p` with `field_of[p] == f` (the bins of field `f`'s own P2G).
+    pub fn split_by_field(&self, field_of: &[u8], out: &mut [SlabBins]) {
+        for bins in out.iter_mut() {
+            bins.start.fill(0);
+        }
+        let mut filled = [0usize; crate::scene::MAX_CONTACT_FIELDS];
+        for s in 0..self.slab_count() {
+            for &p in self.slab(s) {
+                let f = field_of[p as usize] as usize;
+                out[f].order[filled[f]] = p;
+                filled[f] += 1;
+            }
+            for (f, bins) in out.iter_mut().enumerate() {
+                bins.start[s + 1] = filled[f];
+            }
+        }
+    }
 }
 
 /// Reorders particles within each material group by grid cell. Buffers are reused.
@@ -135,6 +154,9 @@ impl Reorder {
             }
             if !p.initial_position.is_empty() {
                 gather(&mut p.initial_position[r.clone()], perm, visited);
+            }
+            if !p.contact_field.is_empty() {
+                gather(&mut p.contact_field[r.clone()], perm, visited);
             }
             for field in p.shared.all_mut() {
                 gather(&mut field[r.clone()], perm, visited);

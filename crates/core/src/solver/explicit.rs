@@ -46,6 +46,11 @@ where
         } else {
             ForceTerm::Standard
         };
+        if self.contact.is_some() {
+            // Validation allows contact with USL only.
+            self.contact_step(dt, physics, force);
+            return;
+        }
         self.grid.clear();
         match self.settings.scheme {
             Scheme::Usl => {

@@ -28,9 +28,11 @@ pub(crate) struct G2pParams<const D: usize> {
     pub gravity: Vector<D>,
 }
 
-/// Gathers from the grid and updates particles; returns the kinematic statistics.
+/// Gathers from the grid and updates particles; returns the kinematic statistics. With
+/// contact `fields` (empty otherwise), each particle gathers from its own field's grid.
 pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
     grid: &Grid<D>,
+    fields: &[Grid<D>],
     particles: &mut Particles<D>,
     params: G2pParams<D>,
 ) -> KinematicStats<D> {
@@ -48,9 +50,10 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
         affine,
         velocity_gradient,
         half_size,
+        contact_field,
         ..
     } = particles;
-    let (mass, half_size) = (&*mass, &*half_size);
+    let (mass, half_size, contact_field) = (&*mass, &*half_size, &*contact_field);
     let position = SharedSlice::new(position);
     let velocity = SharedSlice::new(velocity);
     let deformation = SharedSlice::new(deformation_gradient);
@@ -73,6 +76,11 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                     0.0
                 };
                 let stencil = Stencil::<D>::new::<K>(grid, x, half);
+                let source = if fields.is_empty() {
+                    grid
+                } else {
+                    &fields[contact_field[p] as usize]
+                };
                 let mut v_pic = Vector::<D>::zeros();
                 let mut v_flip_change = Vector::<D>::zeros();
                 let mut b = Matrix::<D>::zeros();
@@ -81,7 +89,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 let need_b = apic && (params.velocity || params.gradient_from_affine);
                 let need_grad = params.deformation && !params.gradient_from_affine;
                 stencil.for_each::<K>(&grid.stride, |i, w, dw, dpos| {
-                    let vi = grid.momentum[i];
+                    let vi = source.momentum[i];
                     v_pic += vi * w;
                     if need_b {
                         b += (vi * w) * dpos.transpose();
@@ -93,7 +101,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                         grad += vi * dw.transpose();
                     }
                     if flip && params.velocity {
-                        v_flip_change += (vi - grid.velocity_old[i]) * w;
+                        v_flip_change += (vi - source.velocity_old[i]) * w;
                     }
                 });
                 // Affine matrix C = B·D⁻¹ (offsets in cells, so divide by dx once).

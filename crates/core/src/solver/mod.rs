@@ -9,8 +9,12 @@
 //!   dynamics per step, `implicit/`), `mechanics_off` (physics operators only).
 //! - `run_loop` is the run loop every mode shares: time step choice, output frames, the
 //!   reference, stop checks; `output_staging` copies particle fields into output order.
+//! - contact between bodies: `multi_field` (one grid velocity field per contact body),
+//!   `contact` (the law where fields meet), `contact_step` (the USL step that uses them).
 
 mod binning;
+mod contact;
+mod contact_step;
 mod explicit;
 mod grid_to_particle;
 pub mod grid_update;
@@ -18,6 +22,7 @@ mod implicit;
 mod interpolation;
 mod mechanics_off;
 mod mode;
+mod multi_field;
 mod output_staging;
 mod parallel;
 mod particle_to_grid;

@@ -1,6 +1,7 @@
 //! The run loop every mode shares: the time step choice (adaptive or fixed, landing on
 //! output times), output frames, the reference, the energy balance and the stop checks.
 
+use super::multi_field::MultiField;
 use super::output_staging::fill_staging;
 use super::simulation::Simulation;
 use super::stats::ParticleFault;
@@ -303,7 +304,8 @@ where
             },
             bytes_per_particle: self.particles.bytes_per_particle(),
             grid_bytes: self.grid.bytes()
-                + self.volume_average.as_ref().map_or(0, VolumeAverage::bytes),
+                + self.volume_average.as_ref().map_or(0, VolumeAverage::bytes)
+                + self.contact.as_ref().map_or(0, MultiField::bytes),
             energy_drift: drift,
             max_energy_drift: max_drift,
             error: self.reference.as_ref().and_then(|r| r.error()),

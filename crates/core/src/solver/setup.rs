@@ -3,6 +3,7 @@
 
 use super::DimensionDispatch;
 use super::binning::{Reorder, SlabBins};
+use super::multi_field::{MultiField, body_fields};
 use super::output_staging::output_fields;
 use super::simulation::{PhysicsSlot, Settings, Simulation};
 use super::stats::KinematicStats;
@@ -59,6 +60,7 @@ where
                     .is_some_and(|r| r.needs_initial_positions()),
             )),
             id: Vec::with_capacity(n),
+            contact_field: Vec::with_capacity(alloc_if(s.contact.is_some())),
             groups: Vec::new(),
             shared: ParticleFields::default(),
         };
@@ -70,6 +72,8 @@ where
         // Bodies of one material are stored together so each law sees contiguous batches.
         let mut order: Vec<&crate::scene::BodyParticles> = v.bodies.iter().collect();
         order.sort_by_key(|b| &s.bodies[b.body].material);
+        let contact = body_fields(s);
+        let mut field_counts = vec![0usize; contact.as_ref().map_or(0, |c| c.1)];
         let mut output_index = vec![0usize; v.bodies.len()];
         let mut next = 0;
         for b in &v.bodies {
@@ -104,6 +108,13 @@ where
                 if particles.initial_position.capacity() > 0 {
                     particles.initial_position.push(x);
                 }
+            }
+            if let Some((fields, _, _)) = &contact {
+                let field = fields[body.body];
+                particles
+                    .contact_field
+                    .extend(std::iter::repeat_n(field, count));
+                field_counts[field as usize] += count;
             }
             particles.groups.last_mut().unwrap().range.end = start + count;
         }
@@ -186,6 +197,8 @@ where
         let needs_interpolation = physics.iter().any(|p| p.physics.needs_interpolation());
         let bins = SlabBins::new(grid.nodes[0], K::SPAN, n);
         let grid_nodes = grid.len();
+        let contact =
+            contact.map(|(_, _, laws)| MultiField::new(&grid, flip, K::SPAN, &field_counts, laws));
         Self {
             boundaries: Boundaries::new(&s.domain.walls, &s.obstacles, domain_cells),
             grid,
@@ -214,6 +227,7 @@ where
             physics_dt: f64::INFINITY,
             relax_time: None,
             sort_counter: 0,
+            contact,
             mode: Some(super::mode::for_scene(s.solver.mechanics)),
             _kernel: std::marker::PhantomData,
         }

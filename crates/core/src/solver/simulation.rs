@@ -7,6 +7,7 @@ use super::grid_to_particle::{G2pParams, grid_to_particle, measure};
 use super::grid_update::{GridParams, update_grid};
 use super::interpolation::build_interpolation;
 use super::mode::StepMode;
+use super::multi_field::MultiField;
 use super::particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
 use super::stats::{KinematicStats, ParticleFault};
 use super::stress_update::{StressScratch, StressStats, update_stress};
@@ -86,6 +87,8 @@ pub struct Simulation<const D: usize, K: Kernel> {
     pub(super) relax_time: Option<f64>,
     /// Mechanical steps taken, for the reordering interval.
     pub(super) sort_counter: u64,
+    /// Grid velocity fields of contact between bodies (`None` without a `contact` section).
+    pub(super) contact: Option<MultiField<D>>,
     /// The time-integration mode (taken out while it advances the simulation).
     pub(super) mode: Option<Box<dyn StepMode<D, K>>>,
     pub(super) _kernel: std::marker::PhantomData<K>,
@@ -271,7 +274,8 @@ where
             gradient_from_affine: self.settings.mls && velocity && deformation,
             gravity: self.settings.gravity,
         };
-        let stats = grid_to_particle::<D, K>(&self.grid, &mut self.particles, params);
+        let fields = self.contact.as_ref().map_or(&[][..], |c| &c.grids[..]);
+        let stats = grid_to_particle::<D, K>(&self.grid, fields, &mut self.particles, params);
         if velocity {
             self.kinematics = stats;
         } else {
