@@ -113,6 +113,11 @@ fn implicit_settings_are_checked_with_their_paths() {
     ] {
         assert!(text.contains(path), "{path} not in {text}");
     }
+    let issues = invalid_example("bimaterial-strip.json", &["solver.anti_locking=fbar"]);
+    assert!(
+        issues.iter().any(|i| i.starts_with("solver.anti_locking")),
+        "{issues:?}"
+    );
     let issues = invalid_example(
         "bimaterial-strip.json",
         &[r#"solver.mechanics={"implicit":{"form":"quasi"}}"#],
