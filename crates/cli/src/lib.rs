@@ -13,6 +13,7 @@ pub mod rom;
 mod scene_file;
 mod schema;
 pub mod stability;
+pub mod stability_implicit;
 mod stdout;
 pub mod study;
 

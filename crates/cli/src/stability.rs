@@ -311,7 +311,7 @@ fn contact_sliding(mu: f64) -> Value {
 
 /// Every case of the suite.
 pub fn cases() -> Vec<Case> {
-    vec![
+    let mut cases = vec![
         Case {
             name: "impact-50",
             what: "Johnson-Cook steel block on a rigid wall at 50 m/s",
@@ -488,7 +488,9 @@ pub fn cases() -> Vec<Case> {
             scene: sparse_surface(),
             expected: Expected::Finished,
         },
-    ]
+    ];
+    cases.extend(crate::stability_implicit::cases());
+    cases
 }
 
 /// Runs one case.
