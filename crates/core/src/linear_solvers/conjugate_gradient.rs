@@ -35,14 +35,9 @@ pub fn solve(
     tolerance: f64,
     max_iterations: u32,
 ) -> Solve {
-    let jacobi = |r: &[f64], z: &mut [f64]| {
-        for ((z, r), d) in z.iter_mut().zip(r).zip(inverse_diagonal) {
-            *z = r * d;
-        }
-    };
     solve_preconditioned(
         apply,
-        jacobi,
+        super::jacobi(inverse_diagonal),
         inverse_diagonal,
         b,
         x,

@@ -16,3 +16,12 @@
 pub mod conjugate_gradient;
 pub mod gmres;
 pub mod sparse_cholesky;
+
+/// Jacobi preconditioning z = D⁻¹ r with the inverse diagonal (zero for fixed unknowns).
+pub fn jacobi(inverse_diagonal: &[f64]) -> impl Fn(&[f64], &mut [f64]) + '_ {
+    move |r, z| {
+        for ((z, r), d) in z.iter_mut().zip(r).zip(inverse_diagonal) {
+            *z = r * d;
+        }
+    }
+}

@@ -296,13 +296,7 @@ impl<const D: usize> Implicit<D> {
         let diag = &mut work.inverse_diagonal;
         diag.fill(0.0);
         for (g, group) in sim.particles.groups.iter().enumerate() {
-            let c = sim
-                .stress_scratch
-                .group_wave_speed
-                .get(g)
-                .copied()
-                .unwrap_or(0.0);
-            let modulus = group.material.density() * c * c;
+            let modulus = workspace::group_modulus(sim, g);
             for p in group.range.clone() {
                 let v = work.volume_n[p] * modulus;
                 for e in work.interp.entries(p) {

@@ -115,20 +115,8 @@ where
     // A floor on the force scale: the force of a strain of 1e-3 in the stiffest material on
     // one cell face, so a nearly unloaded step is judged on an absolute scale (equilibrium
     // to a strain of about 1e-9 at the default tolerance) and not on its own round-off.
-    let stiffest = sim
-        .particles
-        .groups
-        .iter()
-        .enumerate()
-        .map(|(g, group)| {
-            let c = sim
-                .stress_scratch
-                .group_wave_speed
-                .get(g)
-                .copied()
-                .unwrap_or(0.0);
-            group.material.density() * c * c
-        })
+    let stiffest = (0..sim.particles.groups.len())
+        .map(|g| super::workspace::group_modulus(sim, g))
         .fold(0.0f64, f64::max);
     let floor = 1e-3 * stiffest * sim.grid.dx.powi(D as i32 - 1);
     let mut scale = external

@@ -11,6 +11,21 @@ use crate::math::{Matrix, Vector, determinant};
 use crate::physics::Interpolation;
 use crate::scene::Contact;
 
+/// The P-wave modulus ρc² of material group `g` at the last stress update (its stiffness
+/// scale: the Jacobi preconditioner and the force floor use it).
+pub(super) fn group_modulus<const D: usize, K: Kernel>(sim: &Simulation<D, K>, g: usize) -> f64
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    let c = sim
+        .stress_scratch
+        .group_wave_speed
+        .get(g)
+        .copied()
+        .unwrap_or(0.0);
+    sim.particles.groups[g].material.density() * c * c
+}
+
 /// Marks a grid node with no unknown.
 pub(super) const INACTIVE: u32 = u32::MAX;
 
