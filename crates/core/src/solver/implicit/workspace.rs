@@ -64,6 +64,10 @@ pub(super) struct Workspace<const D: usize> {
     pub ghost: Vec<bool>,
     /// For a ghost unknown, its entry in `mirrors` (the first), else [`INACTIVE`].
     pub ghost_mirror: Vec<u32>,
+    /// Particles sorted by the first node of their stencil, and one summed element block
+    /// (the preconditioner's assembly).
+    pub order: Vec<u32>,
+    pub block: Vec<f64>,
     /// Matrix entries of the preconditioner's assembly (reused).
     pub triplets: Vec<faer::sparse::Triplet<usize, usize, f64>>,
     /// Per component: 1 for a free unknown, 0 for a fixed one (wall, obstacle, ghost, no
