@@ -48,6 +48,25 @@ struct WallRule {
     contact: Contact,
 }
 
+impl WallRule {
+    /// The wall's unit normal (into the body) when node `ijk` is on the wall side of its
+    /// surface (inclusive), else `None`.
+    #[inline(always)]
+    fn normal_at<const D: usize>(&self, ijk: [usize; 3]) -> Option<Vector<D>> {
+        let i = ijk[self.axis];
+        let inside = if self.upper {
+            i >= self.surface
+        } else {
+            i <= self.surface
+        };
+        inside.then(|| {
+            let mut n = Vector::<D>::zeros();
+            n[self.axis] = if self.upper { -1.0 } else { 1.0 };
+            n
+        })
+    }
+}
+
 /// Cells of grid beyond each domain face: room for every kernel's stencil and for the ghost
 /// nodes of stick walls.
 pub const GRID_PADDING: usize = 2;
@@ -235,15 +254,7 @@ impl<const D: usize> Boundaries<D> {
     #[inline]
     pub fn apply(&self, ijk: [usize; 3], x: &Vector<D>, t: f64, m: f64, v: &mut Vector<D>) -> f64 {
         for wall in &self.walls {
-            let i = ijk[wall.axis];
-            let inside = if wall.upper {
-                i >= wall.surface
-            } else {
-                i <= wall.surface
-            };
-            if inside {
-                let mut n = Vector::<D>::zeros();
-                n[wall.axis] = if wall.upper { -1.0 } else { 1.0 };
+            if let Some(n) = wall.normal_at::<D>(ijk) {
                 apply_contact(v, &n, wall.contact);
             }
         }
@@ -277,15 +288,7 @@ impl<const D: usize> Boundaries<D> {
         mut f: impl FnMut(Vector<D>, Contact, Vector<D>),
     ) {
         for wall in &self.walls {
-            let i = ijk[wall.axis];
-            let inside = if wall.upper {
-                i >= wall.surface
-            } else {
-                i <= wall.surface
-            };
-            if inside {
-                let mut n = Vector::<D>::zeros();
-                n[wall.axis] = if wall.upper { -1.0 } else { 1.0 };
+            if let Some(n) = wall.normal_at::<D>(ijk) {
                 f(n, wall.contact, Vector::<D>::zeros());
             }
         }

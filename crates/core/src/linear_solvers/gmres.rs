@@ -34,6 +34,17 @@ impl GmresWork {
         }
     }
 
+    /// Resizes for `n` unknowns, keeping the allocations (an implicit step's unknowns change
+    /// from step to step).
+    pub fn resize(&mut self, n: usize) {
+        for v in self.basis.iter_mut().chain(self.z_all.iter_mut()) {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        self.w.clear();
+        self.w.resize(n, 0.0);
+    }
+
     /// Unknowns this work space is sized for.
     pub fn len(&self) -> usize {
         self.w.len()

@@ -44,10 +44,11 @@ impl NewtonVectors {
             v.clear();
             v.resize(n, 0.0);
         }
-        if let Some(m) = restart
-            && self.gmres.as_ref().is_none_or(|g| g.len() != n)
-        {
-            self.gmres = Some(GmresWork::new(n, m));
+        if let Some(m) = restart {
+            match &mut self.gmres {
+                Some(g) if g.restart() == m => g.resize(n),
+                slot => *slot = Some(GmresWork::new(n, m)),
+            }
         }
     }
 }

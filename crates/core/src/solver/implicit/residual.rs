@@ -95,6 +95,27 @@ pub(super) fn project_with<const D: usize>(
     }
 }
 
+/// The gradient at particle `p` of a nodal vector field (one `D`-vector per unknown).
+#[inline(always)]
+fn nodal_gradient<const D: usize>(
+    interp: &crate::physics::Interpolation<D>,
+    entry_dof: &[u32],
+    field: &[f64],
+    p: usize,
+) -> Matrix<D> {
+    let mut grad = Matrix::<D>::zeros();
+    for e in interp.entries(p) {
+        let k = entry_dof[e] as usize * D;
+        let dw = interp.gradient[e];
+        for a in 0..D {
+            for b in 0..D {
+                grad[(a, b)] += field[k + a] * dw[b];
+            }
+        }
+    }
+    grad
+}
+
 /// Sets F = (I + ∇Δu) Fₙ on every particle from the mirrored increment in `work.full`;
 /// returns false if a particle would be inverted.
 fn gather<const D: usize, K: Kernel>(
@@ -117,16 +138,7 @@ where
         .map(|chunk| {
             let mut ok = true;
             for p in chunk_range(chunk, n) {
-                let mut grad = Matrix::<D>::zeros();
-                for e in interp.entries(p) {
-                    let k = entry_dof[e] as usize * D;
-                    let dw = interp.gradient[e];
-                    for a in 0..D {
-                        for b in 0..D {
-                            grad[(a, b)] += full[k + a] * dw[b];
-                        }
-                    }
-                }
+                let grad = nodal_gradient(interp, entry_dof, full, p);
                 let step = identity + grad;
                 ok &= determinant(&step) > 0.0;
                 // SAFETY: chunks are disjoint particle ranges.
@@ -270,16 +282,7 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
         );
         (0..chunk_count(n)).into_par_iter().for_each(|chunk| {
             for p in chunk_range(chunk, n) {
-                let mut g = Matrix::<D>::zeros();
-                for e in interp.entries(p) {
-                    let k = entry_dof[e] as usize * D;
-                    let dw = interp.gradient[e];
-                    for a in 0..D {
-                        for b in 0..D {
-                            g[(a, b)] += full_v[k + a] * dw[b];
-                        }
-                    }
-                }
+                let g = nodal_gradient(interp, entry_dof, full_v, p);
                 let largest = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
                 let eps = if largest > 0.0 { 1e-7 / largest } else { 0.0 };
                 let a = identity + grad_du[p];
