@@ -207,11 +207,6 @@ impl<const D: usize> Implicit<D> {
             self.vectors.trial = f_int;
         }
         self.preconditioner(sim, inertia);
-        let factored = preconditioner::factor(sim, &mut self.work, inertia, dt);
-        if factored.is_some() {
-            sim.report
-                .record_max("implicit.factored_preconditioner", 1.0);
-        }
         // Start: prescribed increments, and the velocity predictor for dynamics.
         let work = &self.work;
         let du = &mut self.vectors.du;
@@ -252,7 +247,6 @@ impl<const D: usize> Implicit<D> {
             &mut self.vectors,
             &s,
             use_cg,
-            factored,
             dt,
             inertia,
         );

@@ -1,7 +1,8 @@
 //! Newton iterations on the grid displacement increment with a matrix-free Krylov solve
 //! per iteration (the tangent applied through each particle's directional stress
 //! difference: Jacobian-free Newton–Krylov, so every material plugin works without a
-//! tangent of its own), a factored elastic preconditioner and a backtracking line search.
+//! tangent of its own), a factored elastic preconditioner, Levenberg–Marquardt damping where the
+//! tangent is nearly singular, and a backtracking line search.
 
 use super::super::DimensionDispatch;
 use super::super::simulation::Simulation;
@@ -67,6 +68,37 @@ pub(super) struct NewtonResult {
     pub last: Option<Evaluation>,
 }
 
+/// Levenberg–Marquardt damping of the Newton direction. Where the tangent is nearly
+/// singular (a liquid before it gels has next to no shear stiffness) a full Newton step
+/// moves far along the soft modes, the residual does not follow the linear model and the
+/// line search stalls. Adding `damping`·diag(K̃) (the Jacobi estimate) to the Krylov
+/// operator and the preconditioner, never to the residual, shortens those moves and leaves
+/// the converged answer unchanged. It starts at zero (plain Newton), rises tenfold from
+/// [`DAMPING_START`] after a step that needed the line search or did not halve the residual,
+/// and falls tenfold (to zero) after one that did.
+trait Damping {
+    fn stiffen(self) -> Self;
+    fn relax(self) -> Self;
+}
+
+/// The first damping tried.
+const DAMPING_START: f64 = 1e-6;
+/// The most damping tried before the step is given up (and cut).
+const DAMPING_MAX: f64 = 1e-2;
+
+impl Damping for f64 {
+    fn stiffen(self) -> f64 {
+        (self * 10.0).max(DAMPING_START)
+    }
+    fn relax(self) -> f64 {
+        if self > DAMPING_START {
+            self * 0.1
+        } else {
+            0.0
+        }
+    }
+}
+
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -80,7 +112,6 @@ pub(super) fn solve<const D: usize, K: Kernel>(
     vectors: &mut NewtonVectors,
     settings: &ImplicitSettings,
     use_cg: bool,
-    mut factored: Option<SparseCholesky>,
     dt: f64,
     inertia: Option<Inertia>,
 ) -> NewtonResult
@@ -126,6 +157,9 @@ where
         .max(norm(residual))
         .max(floor);
     let mut energy0 = 0.0;
+    let mut factored: Option<SparseCholesky> = None;
+    let mut try_factor = true;
+    let mut damping = 0.0f64;
     let mut r_norm = norm(residual);
     for iteration in 0..settings.max_newton_iterations {
         result.iterations = iteration;
@@ -134,8 +168,17 @@ where
             result.converged = true;
             break;
         }
-        if iteration > 0 && factored.is_some() {
-            factored = super::preconditioner::factor(sim, work, inertia, dt).or(factored);
+        // The factored estimate is made at every iterate, after its evaluation (the moduli
+        // probe differences against the iterate's stress); Jacobi once it is too large.
+        if try_factor {
+            factored = super::preconditioner::factor(sim, work, inertia, dt, damping).or(factored);
+            if iteration == 0 {
+                try_factor = factored.is_some();
+                if try_factor {
+                    sim.report
+                        .record_max("implicit.factored_preconditioner", 1.0);
+                }
+            }
         }
         let factored = factored.as_ref();
         // Krylov: J δ = −R, J v ≈ (R(Δu + εv) − R(Δu)) / ε.
@@ -151,6 +194,13 @@ where
                 return;
             }
             tangent_product(sim, work, v, dt, inertia, out);
+            if damping > 0.0 {
+                for ((o, x), d) in out.iter_mut().zip(v).zip(&inverse_diagonal) {
+                    if *d > 0.0 {
+                        *o += damping * x / d;
+                    }
+                }
+            }
         };
         // Inexact Newton: no need to solve below a tenth of the convergence target (the
         // finite-difference product is not more accurate than that anyway).
@@ -228,6 +278,11 @@ where
             let e = evaluate(sim, work, trial, dt, inertia, trial_residual);
             let t_norm = norm(trial_residual);
             if e.valid && t_norm <= (1.0 - 1e-4 * alpha) * r_norm {
+                damping = if alpha == 1.0 && t_norm <= 0.5 * r_norm {
+                    damping.relax()
+                } else {
+                    damping.stiffen()
+                };
                 std::mem::swap(du, trial);
                 std::mem::swap(residual, trial_residual);
                 r_norm = t_norm;
@@ -236,6 +291,12 @@ where
                 break;
             }
             alpha *= 0.5;
+        }
+        if !accepted && damping < DAMPING_MAX {
+            // A more strongly damped direction before giving up.
+            damping = damping.stiffen();
+            eval = evaluate(sim, work, du, dt, inertia, residual);
+            continue;
         }
         if !accepted {
             // The particles hold a rejected trial: put back the last accepted state.

@@ -47,6 +47,7 @@ pub(super) fn factor<const D: usize, K: Kernel>(
     work: &mut Workspace<D>,
     inertia: Option<Inertia>,
     dt: f64,
+    damping: f64,
 ) -> Option<SparseCholesky>
 where
     dyn Material: DimensionDispatch<D>,
@@ -56,14 +57,15 @@ where
     }
     super::residual::linearise_at(sim, work);
     super::residual::probe_moduli(sim, work, dt);
-    assemble_and_factor(sim, work, inertia, true)
-        .or_else(|| assemble_and_factor(sim, work, inertia, false))
+    assemble_and_factor(sim, work, inertia, damping, true)
+        .or_else(|| assemble_and_factor(sim, work, inertia, damping, false))
 }
 
 fn assemble_and_factor<const D: usize, K: Kernel>(
     sim: &Simulation<D, K>,
     work: &mut Workspace<D>,
     inertia: Option<Inertia>,
+    damping: f64,
     geometric: bool,
 ) -> Option<SparseCholesky>
 where
@@ -153,8 +155,9 @@ where
     for i in 0..n {
         let inv = work.inverse_diagonal[i];
         if inv > 0.0 {
-            // Mass term, and a small shift so a body held only in part stays factorable.
-            let mut diag = 1e-8 / inv;
+            // Mass term, the Newton damping, and a small shift so a body held only in part
+            // stays factorable.
+            let mut diag = (1e-8 + damping) / inv;
             if let Some(c) = inertia {
                 diag += c.c_u * work.mass[i / D];
             }
