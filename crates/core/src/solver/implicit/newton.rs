@@ -151,7 +151,7 @@ where
         .map(|g| super::workspace::group_modulus(sim, g))
         .fold(0.0f64, f64::max);
     let floor = 1e-3 * stiffest * sim.grid.dx.powi(D as i32 - 1);
-    let mut scale = external
+    let scale = external
         .max(force0)
         .max(eval.force_scale)
         .max(norm(residual))
@@ -163,8 +163,9 @@ where
     let mut r_norm = norm(residual);
     for iteration in 0..settings.max_newton_iterations {
         result.iterations = iteration;
-        scale = scale.max(eval.force_scale);
-        if r_norm <= settings.force_tolerance * scale {
+        // Judged against the loads and the start's forces, or the forces of the iterate
+        // itself (not of an earlier, rejected or far-off, iterate).
+        if r_norm <= settings.force_tolerance * scale.max(eval.force_scale) {
             result.converged = true;
             break;
         }
@@ -268,17 +269,35 @@ where
         if iteration == 0 {
             energy0 = energy;
         }
-        // Backtracking line search on the residual norm.
+        // Line search along the direction. A step is taken when it lowers the residual norm
+        // or, for a descent direction of the energy (s₀ = δ·R < 0), when the slope
+        // s(α) = δ·R(Δu + αδ) has fallen to half of |s₀| (the energy went down and is near
+        // its minimum along δ). The residual norm alone is a poor judge for slender bodies: a
+        // good Newton step that rotates a beam leaves a large, easily corrected out-of-balance
+        // force in its stiff axial modes. Otherwise α comes from the secant of the slope (or
+        // is halved).
+        let s0: f64 = direction
+            .iter()
+            .zip(residual.iter())
+            .map(|(a, b)| a * b)
+            .sum();
         let mut alpha = 1.0;
         let mut accepted = false;
-        for _ in 0..6 {
+        for _ in 0..8 {
             for i in 0..n {
                 trial[i] = du[i] + alpha * direction[i];
             }
             let e = evaluate(sim, work, trial, dt, inertia, trial_residual);
             let t_norm = norm(trial_residual);
-            if e.valid && t_norm <= (1.0 - 1e-4 * alpha) * r_norm {
-                damping = if alpha == 1.0 && t_norm <= 0.5 * r_norm {
+            let slope: f64 = direction
+                .iter()
+                .zip(trial_residual.iter())
+                .map(|(a, b)| a * b)
+                .sum();
+            let lower = t_norm <= (1.0 - 1e-4 * alpha) * r_norm;
+            let minimum = s0 < 0.0 && slope <= 0.5 * s0.abs();
+            if e.valid && t_norm.is_finite() && (lower || minimum) {
+                damping = if alpha == 1.0 && (t_norm <= 0.5 * r_norm || minimum) {
                     damping.relax()
                 } else {
                     damping.stiffen()
@@ -290,7 +309,13 @@ where
                 accepted = true;
                 break;
             }
-            alpha *= 0.5;
+            // A valid trial that was not taken has s(α) > |s₀|/2 > 0: the energy's minimum
+            // lies before α, where the secant of the slope from 0 puts it.
+            alpha = if e.valid && s0 < 0.0 && slope.is_finite() {
+                (alpha * s0 / (s0 - slope)).clamp(0.1 * alpha, 0.9 * alpha)
+            } else {
+                0.5 * alpha
+            };
         }
         if !accepted && damping < DAMPING_MAX {
             // A more strongly damped direction before giving up.

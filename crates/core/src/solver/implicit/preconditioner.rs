@@ -21,23 +21,35 @@ use faer::sparse::Triplet;
 /// Most matrix entries (before summing duplicates) the assembly may make (~24 bytes each).
 const MAX_TRIPLETS: usize = 20_000_000;
 
-/// The unknown a component maps to (following ghost mirrors) with its sign, or `None` when
-/// it is fixed.
-fn target<const D: usize>(work: &Workspace<D>, mut dof: usize, d: usize) -> Option<(usize, f64)> {
+/// The unknowns a component maps to (following ghost mirrors and weak-node ties) with their
+/// factors: none when it is fixed, two for a node extrapolated from two neighbours.
+fn targets<const D: usize>(work: &Workspace<D>, mut dof: usize, d: usize) -> [(usize, f64); 2] {
+    const NONE: (usize, f64) = (usize::MAX, 0.0);
+    let free = |dof: usize, factor: f64| {
+        let i = dof * D + d;
+        if work.mask[i] > 0.0 {
+            (i, factor)
+        } else {
+            NONE
+        }
+    };
     let mut sign = 1.0;
     for _ in 0..8 {
         let mirror = work.ghost_mirror[dof];
         if mirror == INACTIVE {
-            let i = dof * D + d;
-            return (work.mask[i] > 0.0).then_some((i, sign));
+            return [free(dof, sign), NONE];
         }
         let m = work.mirrors[mirror as usize];
-        if !m.symmetry || d == m.axis as usize {
-            sign = -sign;
+        if m.second != INACTIVE {
+            return [
+                free(m.front as usize, 2.0 * sign),
+                free(m.second as usize, -sign),
+            ];
         }
+        sign *= m.sign(d);
         dof = m.front as usize;
     }
-    None
+    [NONE, NONE]
 }
 
 /// Assembles and factors the elastic estimate; `None` when it is too large or not
@@ -133,16 +145,15 @@ where
             for b in 0..stencil {
                 let dof_b = work.entry_dof[base + b] as usize;
                 for i in 0..D {
-                    let Some((row, si)) = target(work, dof_a, i) else {
-                        continue;
-                    };
+                    let rows = targets(work, dof_a, i);
                     for j in 0..D {
-                        let Some((col, sj)) = target(work, dof_b, j) else {
-                            continue;
-                        };
-                        if col <= row {
-                            let k = block[((a * stencil + b) * D + i) * D + j];
-                            triplets.push(Triplet::new(row, col, k * si * sj));
+                        let k = block[((a * stencil + b) * D + i) * D + j];
+                        for &(row, si) in &rows {
+                            for (col, sj) in targets(work, dof_b, j) {
+                                if si != 0.0 && sj != 0.0 && col <= row {
+                                    triplets.push(Triplet::new(row, col, k * si * sj));
+                                }
+                            }
                         }
                     }
                 }

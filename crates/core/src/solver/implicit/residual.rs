@@ -11,7 +11,7 @@ use super::super::DimensionDispatch;
 use super::super::parallel::{SharedSlice, chunk_count, chunk_range};
 use super::super::simulation::Simulation;
 use super::super::stress_update::{StressStats, update_stress};
-use super::workspace::{Mirror, NormalConstraint, Workspace};
+use super::workspace::{INACTIVE, Mirror, NormalConstraint, Workspace};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::math::{Matrix, cofactor, determinant};
@@ -45,12 +45,11 @@ pub(super) fn mirror<const D: usize>(work: &mut Workspace<D>, du: &[f64]) {
     for m in &work.mirrors {
         let (g, f) = (m.ghost as usize * D, m.front as usize * D);
         for d in 0..D {
-            let v = work.full[f + d];
-            work.full[g + d] = if !m.symmetry || d == m.axis as usize {
-                -v
-            } else {
-                v
-            };
+            work.full[g + d] = m.sign(d) * work.full[f + d];
+            if m.second != INACTIVE {
+                let s = m.second as usize * D;
+                work.full[g + d] = 2.0 * work.full[f + d] - work.full[s + d];
+            }
         }
     }
 }
@@ -61,12 +60,12 @@ pub(super) fn fold<const D: usize>(mirrors: &[Mirror], r: &mut [f64]) {
     for m in mirrors.iter().rev() {
         let (g, f) = (m.ghost as usize * D, m.front as usize * D);
         for d in 0..D {
-            let v = r[g + d];
-            r[f + d] += if !m.symmetry || d == m.axis as usize {
-                -v
+            if m.second != INACTIVE {
+                r[f + d] += 2.0 * r[g + d];
+                r[m.second as usize * D + d] -= r[g + d];
             } else {
-                v
-            };
+                r[f + d] += m.sign(d) * r[g + d];
+            }
             r[g + d] = 0.0;
         }
     }

@@ -29,14 +29,45 @@ where
 /// Marks a grid node with no unknown.
 pub(super) const INACTIVE: u32 = u32::MAX;
 
-/// A ghost node behind a stick or symmetry wall and the node it mirrors.
+/// A node whose increment is another's image: a ghost behind a stick wall (negated), behind
+/// a symmetry wall (normal component negated), or a weakly supported node tied to its
+/// neighbours (extrapolated linearly from `front` and `second`, `2 front − second`, or
+/// copied from `front` when `second` is [`INACTIVE`]).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Mirror {
     pub ghost: u32,
     pub front: u32,
+    pub second: u32,
     pub axis: u8,
-    pub symmetry: bool,
+    pub kind: MirrorKind,
 }
+
+/// How a [`Mirror`] maps its front node's increment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum MirrorKind {
+    Stick,
+    Symmetry,
+    Tie,
+}
+
+impl Mirror {
+    /// The factor component `d` of the front's increment takes on the ghost.
+    #[inline]
+    pub fn sign(&self, d: usize) -> f64 {
+        match self.kind {
+            MirrorKind::Stick => -1.0,
+            MirrorKind::Symmetry if d == self.axis as usize => -1.0,
+            MirrorKind::Symmetry | MirrorKind::Tie => 1.0,
+        }
+    }
+}
+
+/// Nodes whose particle support Σ_p w V is below this fraction of a cell's volume are tied
+/// to their best-supported neighbour in the static form. Such a node (a corner just past a
+/// free surface, reached only by the tail of a few particles' kernels) takes a load ∝ w but
+/// a stiffness ∝ |∇w|², so alone it would move many times more than the body in a linear
+/// solve and wreck Newton's convergence (the small-cut-cell problem of unfitted methods).
+pub(super) const WEAK_SUPPORT: f64 = 0.01;
 
 /// A constraint on the component of a node's increment along a general normal
 /// (a slip surface that is not axis-aligned): `du·n = value`.
@@ -110,6 +141,8 @@ pub(super) struct Workspace<const D: usize> {
     pub state_n: Vec<Vec<Vec<f64>>>,
     /// Free strain the stress update had applied at the start of the step.
     pub applied_n: Vec<f64>,
+    /// Particle support Σ_p w V of each unknown's node, in cell volumes (weak-node ties).
+    pub support: Vec<f64>,
     /// Free strain before and after the physics advanced (for ramping within cut steps).
     pub free_strain_old: Vec<f64>,
     pub free_strain_new: Vec<f64>,
@@ -151,6 +184,11 @@ impl<const D: usize> Workspace<D> {
         );
         sim.boundaries
             .for_each_mirror_node(grid.nodes, |ghost, front, axis, symmetry| {
+                let kind = if symmetry {
+                    MirrorKind::Symmetry
+                } else {
+                    MirrorKind::Stick
+                };
                 let g = dof_of_node[grid.index(ghost)];
                 if g == INACTIVE {
                     return;
@@ -163,10 +201,14 @@ impl<const D: usize> Workspace<D> {
                 mirrors.push(Mirror {
                     ghost: g,
                     front: dof_of_node[f_node],
+                    second: INACTIVE,
                     axis: axis as u8,
-                    symmetry,
+                    kind,
                 });
             });
+        if !dynamic {
+            self.tie_weak_nodes(sim);
+        }
         let n = self.len();
         let nodes = self.node_of_dof.len();
         self.ghost.clear();
@@ -209,6 +251,91 @@ impl<const D: usize> Workspace<D> {
             b.clear();
             b.resize(n, 0.0);
         }
+    }
+
+    /// Ties each weakly supported node (see [`WEAK_SUPPORT`]) to its neighbours: along the
+    /// direction whose next two nodes are well supported (the first with the most support),
+    /// it takes their linear extrapolation, so a uniform strain (and nearly a bending one)
+    /// is kept; with only one such neighbour it copies it; ghosts stay as they are.
+    fn tie_weak_nodes<K: Kernel>(&mut self, sim: &Simulation<D, K>)
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
+        let grid = &sim.grid;
+        let nodes = self.node_of_dof.len();
+        let support = &mut self.support;
+        support.clear();
+        support.resize(nodes, 0.0);
+        let cell = grid.dx.powi(D as i32);
+        for p in 0..sim.particles.len() {
+            let v = sim.particles.volume0[p] * determinant(&sim.particles.deformation_gradient[p]);
+            for e in self.interp.entries(p) {
+                support[self.entry_dof[e] as usize] += self.interp.weight[e] * v / cell;
+            }
+        }
+        let mut is_ghost = vec![false; nodes];
+        for m in &self.mirrors {
+            is_ghost[m.ghost as usize] = true;
+        }
+        // The well-supported unknown `steps` nodes from `ijk` along `offset`, if any.
+        let strong = |ijk: [usize; 3], offset: [i64; 3], steps: i64| -> Option<u32> {
+            let mut n = ijk;
+            for d in 0..D {
+                let c = ijk[d] as i64 + steps * offset[d];
+                if c < 0 || c as usize >= grid.nodes[d] {
+                    return None;
+                }
+                n[d] = c as usize;
+            }
+            let j = self.dof_of_node[grid.index(n)];
+            (j != INACTIVE && !is_ghost[j as usize] && support[j as usize] >= WEAK_SUPPORT)
+                .then_some(j)
+        };
+        let mut ties = Vec::new();
+        for k in 0..nodes {
+            if is_ghost[k] || support[k] >= WEAK_SUPPORT {
+                continue;
+            }
+            let ijk = grid.coords(self.node_of_dof[k] as usize);
+            // (front, second, support of front), linear extrapolation preferred.
+            let mut best: Option<(u32, u32, f64)> = None;
+            for code in 0..3usize.pow(D as u32) {
+                let mut offset = [0i64; 3];
+                let mut c = code;
+                for o in offset.iter_mut().take(D) {
+                    *o = (c % 3) as i64 - 1;
+                    c /= 3;
+                }
+                if offset == [0; 3] {
+                    continue;
+                }
+                let Some(j) = strong(ijk, offset, 1) else {
+                    continue;
+                };
+                let second = strong(ijk, offset, 2).unwrap_or(INACTIVE);
+                let s = support[j as usize];
+                let better = match best {
+                    None => true,
+                    Some((_, b2, bs)) => (second != INACTIVE, s) > (b2 != INACTIVE, bs),
+                };
+                if better {
+                    best = Some((j, second, s));
+                }
+            }
+            if let Some((front, second, _)) = best {
+                ties.push(Mirror {
+                    ghost: k as u32,
+                    front,
+                    second,
+                    axis: 0,
+                    kind: MirrorKind::Tie,
+                });
+            }
+        }
+        // Ties go first: a tied node may itself be the image of a wall's ghost, so it must
+        // take its value before the ghost copies it (and its ghost's force folds onto it
+        // before it folds onward).
+        self.mirrors.splice(0..0, ties);
     }
 
     /// Gravity on the nodes, `g·scale` (the load ramp), before folding.
