@@ -304,8 +304,8 @@ fn check(
         Some(Ok(scene)) => scene,
     };
     let mut scene = scene;
-    // A quasi-static step relaxes for up to max_iterations (20,000 in underfill-cure, 5 s a
-    // step): the short run caps them, and may then stop on non-convergence (exit 3).
+    // A quasi-static step relaxes for up to max_iterations (a mutant may ask 20,000, seconds
+    // a step): the short run caps them, and may then stop on non-convergence (exit 3).
     if let Mechanics::QuasiStatic { max_iterations, .. } = &mut scene.scene.solver.mechanics {
         *max_iterations = (*max_iterations).min(RELAX_ITERATIONS);
     }
