@@ -49,6 +49,7 @@ struct Totals {
     steps: u64,
     newton: u64,
     krylov: u64,
+    factorisations: u64,
     cuts: u64,
     max_newton: u32,
 }
@@ -124,6 +125,8 @@ where
             .record_max("implicit.newton_iterations", t.newton as f64);
         sim.report
             .record_max("implicit.krylov_iterations", t.krylov as f64);
+        sim.report
+            .record_max("implicit.factorisations", t.factorisations as f64);
         sim.report.record_max("implicit.cuts", t.cuts as f64);
         sim.report.record_max("implicit.steps", t.steps as f64);
         sim.report
@@ -232,6 +235,7 @@ impl<const D: usize> Implicit<D> {
                     converged: false,
                     iterations: 0,
                     krylov_iterations: 0,
+                    factorisations: 0,
                     residual: f64::NAN,
                     scale: 0.0,
                     worst: 0,
@@ -252,6 +256,7 @@ impl<const D: usize> Implicit<D> {
         );
         self.totals.newton += result.iterations as u64;
         self.totals.krylov += result.krylov_iterations as u64;
+        self.totals.factorisations += result.factorisations as u64;
         self.totals.max_newton = self.totals.max_newton.max(result.iterations);
         if !result.converged {
             let node = self

@@ -60,6 +60,8 @@ pub(super) struct NewtonResult {
     pub converged: bool,
     pub iterations: u32,
     pub krylov_iterations: u32,
+    /// Preconditioner factorisations made.
+    pub factorisations: u32,
     /// Residual norm and the scale it was judged against at the end.
     pub residual: f64,
     pub scale: f64,
@@ -80,6 +82,10 @@ trait Damping {
     fn stiffen(self) -> Self;
     fn relax(self) -> Self;
 }
+
+/// Krylov iterations past which the factored preconditioner is made again at the next
+/// Newton iteration.
+const STALE: u32 = 20;
 
 /// The first damping tried.
 const DAMPING_START: f64 = 1e-6;
@@ -123,6 +129,7 @@ where
         converged: false,
         iterations: 0,
         krylov_iterations: 0,
+        factorisations: 0,
         residual: f64::INFINITY,
         scale: 0.0,
         worst: 0,
@@ -159,6 +166,8 @@ where
     let mut energy0 = 0.0;
     let mut factored: Option<SparseCholesky> = None;
     let mut try_factor = true;
+    let mut last_krylov = 0u32;
+    let mut factored_damping = 0.0f64;
     let mut damping = 0.0f64;
     let mut r_norm = norm(residual);
     for iteration in 0..settings.max_newton_iterations {
@@ -169,10 +178,16 @@ where
             result.converged = true;
             break;
         }
-        // The factored estimate is made at every iterate, after its evaluation (the moduli
-        // probe differences against the iterate's stress); Jacobi once it is too large.
-        if try_factor {
-            factored = super::preconditioner::factor(sim, work, inertia, dt, damping).or(factored);
+        // The factored estimate is made after the first evaluation (the moduli probe
+        // differences against the iterate's stress) and made again when it has gone stale
+        // (the last Krylov solve needed more than STALE iterations) or the damping changed;
+        // Jacobi once it is too large.
+        let stale = iteration == 0 || last_krylov > STALE || damping != factored_damping;
+        if try_factor && stale {
+            factored_damping = damping;
+            let fresh = super::preconditioner::factor(sim, work, inertia, dt, damping);
+            result.factorisations += u32::from(fresh.is_some());
+            factored = fresh.or(factored);
             if iteration == 0 {
                 try_factor = factored.is_some();
                 if try_factor {
@@ -256,6 +271,7 @@ where
         };
         work.inverse_diagonal = inverse_diagonal;
         result.krylov_iterations += solve.iterations;
+        last_krylov = solve.iterations;
         if direction.iter().any(|v| !v.is_finite()) {
             break;
         }
