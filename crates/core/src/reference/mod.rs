@@ -2,18 +2,20 @@
 //!
 //! A reference is registered by the crate that owns its physics, as materials and physics
 //! operators are: the core keeps the mechanics references it owns (vibrating bar, heavy
-//! elastica, Poiseuille start-up); the plugins add theirs (Taylor bar, heat conduction,
+//! elastica, bimaterial strip, Kirsch plate, Poiseuille start-up); the plugins add theirs (Taylor bar, heat conduction,
 //! Stefan, cure, capillary filling). An author writes a [`ReferenceLaw`] (generic over the
 //! dimension, like a material's `ConstitutiveLaw`) and a parameter struct, and returns a
 //! [`TypedReferenceFactory`] from `Plugin::references`.
 
 mod bimaterial_strip;
 mod cantilever_elastica;
+mod kirsch_plate;
 mod poiseuille_startup;
 mod vibrating_bar;
 
 pub use bimaterial_strip::bimaterial_curvature;
 pub use cantilever_elastica::heavy_elastica_tip_deflection;
+pub use kirsch_plate::kirsch_stress_along_load;
 pub use poiseuille_startup::{poiseuille_startup_profile, poiseuille_startup_velocity};
 
 use crate::output::Comparison;
@@ -174,6 +176,7 @@ pub fn core_references() -> Vec<Box<dyn ReferenceFactory>> {
         vibrating_bar::factory(),
         cantilever_elastica::factory(),
         bimaterial_strip::factory(),
+        kirsch_plate::factory(),
         poiseuille_startup::factory(),
     ]
 }
@@ -308,11 +311,12 @@ mod tests {
             [
                 "bimaterial_strip",
                 "cantilever_elastica",
+                "kirsch_plate",
                 "poiseuille_startup",
                 "vibrating_bar"
             ]
         );
-        assert_eq!(registry.references_of(CORE).len(), 4);
+        assert_eq!(registry.references_of(CORE).len(), 5);
         let catalogue = registry.catalogue();
         assert!(catalogue["core"]["references"]["vibrating_bar"]["properties"]["axis"].is_object());
         match registry.register(Box::new(Clash)) {
