@@ -23,6 +23,7 @@ use tokio::sync::watch;
 /// Every route: (method, path as in the OpenAPI file).
 pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/v1/health"),
+    ("get", "/metrics"),
     ("get", "/v1/plugins"),
     ("post", "/v1/jobs"),
     ("get", "/v1/jobs"),
@@ -41,6 +42,7 @@ pub fn router(state: Shared, stop: watch::Receiver<bool>) -> Router {
     let limit = state.config.max_body_bytes;
     Router::new()
         .route("/v1/health", get(health))
+        .route("/metrics", get(metrics))
         .route("/v1/plugins", get(plugins))
         .route("/v1/jobs", get(list_jobs).post(submit))
         .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
@@ -50,6 +52,7 @@ pub fn router(state: Shared, stop: watch::Receiver<bool>) -> Router {
         .route("/v1/jobs/{id}/results/{*path}", get(results))
         .fallback(|| async { ApiError::not_found("no such route") })
         .layer(middleware::from_fn_with_state(state.clone(), authorize))
+        .layer(middleware::from_fn_with_state(state.clone(), log_request))
         .layer(DefaultBodyLimit::max(limit))
         .layer(Extension(stop))
         .with_state(state)
@@ -78,6 +81,57 @@ async fn authorize(
         }
     }
     next.run(request).await
+}
+
+/// One log line per request (method, path, status, duration, user), and the request count
+/// for `/metrics`. The user is what [`authorize`] found, passed back in the response's
+/// extensions.
+async fn log_request(
+    axum::extract::State(state): axum::extract::State<Shared>,
+    request: Request,
+    next: Next,
+) -> Response {
+    let start = std::time::Instant::now();
+    let method = request.method().clone();
+    let path = request.uri().path().to_string();
+    let response = next.run(request).await;
+    let status = response.status().as_u16();
+    let user = response
+        .extensions()
+        .get::<LoggedUser>()
+        .map_or("-", |u| u.0.as_str())
+        .to_string();
+    state.metrics.request(method.as_str(), status);
+    tracing::info!(
+        method = %method,
+        path = %path,
+        status,
+        duration_ms = start.elapsed().as_secs_f64() * 1000.0,
+        user = %user,
+        "request"
+    );
+    response
+}
+
+/// The user a request was made as, for the request's log line.
+#[derive(Clone)]
+pub(crate) struct LoggedUser(pub String);
+
+/// Prometheus text exposition of the queue (from the database) and this process's counters.
+async fn metrics(
+    axum::extract::State(state): axum::extract::State<Shared>,
+) -> Result<Response, ApiError> {
+    let by_state = state.db.count_by_status().await?;
+    let running = state.db.running_leases().await?;
+    let text = state.metrics.render(&by_state, &running);
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            "text/plain; version=0.0.4; charset=utf-8",
+        )],
+        text,
+    )
+        .into_response())
 }
 
 async fn health() -> Json<serde_json::Value> {
@@ -133,28 +187,37 @@ async fn submit(
         ));
     }
     let id = uuid::Uuid::new_v4().to_string();
-    let queued = db::insert(
-        &state.db,
-        &id,
-        &checked.name,
-        &checked.scene,
-        checked.particles,
-        checked.end_time,
-        state.config.max_queued,
-    )
-    .await?;
-    if !queued {
-        return Err(ApiError::new(
-            StatusCode::TOO_MANY_REQUESTS,
-            "queue_full",
-            format!(
-                "the queue holds its maximum of {} jobs; try later",
-                state.config.max_queued
-            ),
-        ));
+    let inserted = state
+        .db
+        .insert(
+            &id,
+            &checked.name,
+            &checked.scene,
+            checked.particles,
+            checked.end_time,
+            None,
+            state.config.max_queued,
+            None,
+        )
+        .await?;
+    match inserted {
+        db::Inserted::Queued => {}
+        db::Inserted::QueueFull | db::Inserted::UserQueueFull => {
+            return Err(ApiError::new(
+                StatusCode::TOO_MANY_REQUESTS,
+                "queue_full",
+                format!(
+                    "the queue holds its maximum of {} jobs; try later",
+                    state.config.max_queued
+                ),
+            ));
+        }
     }
     state.jobs.wake.notify_one();
-    let row = db::get(&state.db, &id)
+    tracing::info!(job = %id, name = %checked.name, particles = checked.particles, "job queued");
+    let row = state
+        .db
+        .get(&id)
         .await?
         .ok_or_else(|| ApiError::internal("job vanished"))?;
     let location = format!("/v1/jobs/{id}");
@@ -324,7 +387,10 @@ async fn list_jobs(
     }
     let limit = q.limit.unwrap_or(100).clamp(1, 1000);
     let offset = q.offset.unwrap_or(0).max(0);
-    let (rows, total) = db::list(&state.db, q.status.as_deref(), limit, offset).await?;
+    let (rows, total) = state
+        .db
+        .list(q.status.as_deref(), None, limit, offset)
+        .await?;
     let jobs: Vec<_> = rows.iter().map(|r| r.view()).collect();
     Ok(Json(
         serde_json::json!({ "jobs": jobs, "total": total, "limit": limit, "offset": offset }),
@@ -340,7 +406,9 @@ fn job_id(raw: &str) -> Result<String, ApiError> {
 
 async fn find(state: &State, raw: &str) -> Result<db::JobRow, ApiError> {
     let id = job_id(raw)?;
-    db::get(&state.db, &id)
+    state
+        .db
+        .get(&id)
         .await?
         .ok_or_else(|| ApiError::not_found(format!("no job `{raw}`")))
 }
@@ -364,9 +432,9 @@ async fn cancel_job(
             format!("job {} is already {}", row.id, row.status),
         ));
     }
-    if !db::cancel_queued(&state.db, &row.id).await? {
+    if !state.db.cancel_queued(&row.id).await? {
         // Running: ask it to stop; it ends within one step and keeps what it wrote.
-        db::request_cancel(&state.db, &row.id).await?;
+        state.db.request_cancel(&row.id).await?;
         state.jobs.cancel(&row.id);
         for _ in 0..100 {
             let now = find(&state, &row.id).await?;
@@ -400,7 +468,7 @@ async fn events(
                 return None;
             }
             loop {
-                let row = match db::get(&state.db, &id).await {
+                let row = match state.db.get(&id).await {
                     Ok(Some(r)) => r,
                     _ => return None,
                 };
