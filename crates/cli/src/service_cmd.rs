@@ -48,8 +48,15 @@ pub struct ServeArgs {
     #[arg(long, env = "MPM_STORE")]
     pub store: Option<PathBuf>,
     /// Require `Authorization: Bearer TOKEN` on every route but /v1/health.
-    #[arg(long, env = "MPM_TOKEN")]
+    #[arg(long, env = "MPM_TOKEN", conflicts_with = "tokens")]
     pub token: Option<String>,
+    /// Users: a token file of lines `NAME ROLE SHA256HEX` (ROLE `user` or `admin`; the hash
+    /// is `printf %s TOKEN | sha256sum`). Each user sees and cancels only their own jobs.
+    #[arg(long, env = "MPM_TOKENS")]
+    pub tokens: Option<PathBuf>,
+    /// Most queued jobs of one user (with --tokens).
+    #[arg(long, default_value_t = 100)]
+    pub max_queued_per_user: usize,
     /// Jobs run at once by this process (0: API only; jobs run in `mpm worker` processes).
     #[arg(long, default_value_t = 1)]
     pub workers: usize,
@@ -62,6 +69,14 @@ pub struct ServeArgs {
     /// Most queued jobs.
     #[arg(long, default_value_t = 1000)]
     pub max_queued: usize,
+    /// Largest grid a submitted scene may need, bytes (estimated from the domain and cell
+    /// size; refused with 422 at `domain.cell_size`).
+    #[arg(long)]
+    pub max_grid_bytes: Option<u64>,
+    /// Most time steps a submitted scene may take (end_time over its initial time step;
+    /// refused with 422 at `solver.end_time`, or `solver.dt` when the step is fixed).
+    #[arg(long)]
+    pub max_steps: Option<u64>,
     /// Longest a submitted scene's validation may take, seconds (then 422).
     #[arg(long, default_value_t = 10.0)]
     pub validation_seconds: f64,
@@ -146,7 +161,19 @@ fn base_config(queue: &QueueArgs) -> anyhow::Result<mpm_service::Config> {
 pub fn serve(args: ServeArgs, registry: Arc<Registry>) -> anyhow::Result<ExitStatus> {
     init_logs(args.queue.log_format);
     let defaults = mpm_service::Config::default();
+    let users = match &args.tokens {
+        Some(path) => {
+            Some(Arc::new(mpm_service::Users::load(path).map_err(|e| {
+                crate::exit_status::input_error!("--tokens {e}")
+            })?))
+        }
+        None => None,
+    };
     let config = mpm_service::Config {
+        users,
+        max_queued_per_user: args.max_queued_per_user,
+        max_grid_bytes: args.max_grid_bytes,
+        max_steps: args.max_steps,
         listen: args.listen,
         data_dir: args.data,
         store_dir: args.store,

@@ -376,6 +376,18 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
     let local = run(&load(&path, &[]));
     assert_eq!(job["metrics"]["error"].as_f64(), local.error);
 
+    // The surviving worker logged the requeueing, naming the worker that lost the job.
+    let logs: String = (1..=2)
+        .map(|n| std::fs::read_to_string(dir.path().join(format!("worker{n}.log"))).unwrap())
+        .collect();
+    assert!(
+        logs.lines()
+            .any(|l| l.contains("job requeued: its worker's lease ran out")
+                && l.contains(&long_id)
+                && l.contains(&killed_name)),
+        "{logs}"
+    );
+
     let metrics = client()
         .get(format!("{url}/metrics"))
         .send()

@@ -58,29 +58,83 @@ pub fn router(state: Shared, stop: watch::Receiver<bool>) -> Router {
         .with_state(state)
 }
 
+/// Who is asking: a user of the token file, or (without one) the single-token or open
+/// service's one anonymous caller, who sees everything as before users existed.
+#[derive(Clone, Debug)]
+pub(crate) struct Caller {
+    /// The user's name; `None` without a token file.
+    pub name: Option<String>,
+    /// Sees and cancels every job, reads `/metrics`.
+    pub admin: bool,
+}
+
+impl Caller {
+    /// Whether this caller may see a job owned by `owner`.
+    fn may_see(&self, owner: Option<&str>) -> bool {
+        self.admin || (self.name.is_some() && self.name.as_deref() == owner)
+    }
+}
+
+fn unauthorized() -> Response {
+    ApiError::new(
+        StatusCode::UNAUTHORIZED,
+        "unauthorized",
+        "a valid `Authorization: Bearer <token>` header is required",
+    )
+    .into_response()
+}
+
+/// Finds the caller from the bearer token (a token file's users, or the one `--token`), or
+/// answers 401; `/v1/health` needs no token.
 async fn authorize(
     axum::extract::State(state): axum::extract::State<Shared>,
-    request: Request,
+    mut request: Request,
     next: Next,
 ) -> Response {
-    if let Some(token) = &state.config.token
-        && request.uri().path() != "/v1/health"
-    {
-        let expected = format!("Bearer {token}");
-        let given = request
-            .headers()
-            .get(header::AUTHORIZATION)
-            .and_then(|h| h.to_str().ok());
-        if given != Some(expected.as_str()) {
-            return ApiError::new(
-                StatusCode::UNAUTHORIZED,
-                "unauthorized",
-                "a valid `Authorization: Bearer <token>` header is required",
-            )
-            .into_response();
+    let presented = request
+        .headers()
+        .get(header::AUTHORIZATION)
+        .and_then(|h| h.to_str().ok())
+        .and_then(|h| h.strip_prefix("Bearer "))
+        .map(str::to_string);
+    let health = request.uri().path() == "/v1/health";
+    let caller = if let Some(users) = &state.config.users {
+        match presented.as_deref().and_then(|t| users.authenticate(t)) {
+            Some(user) => Caller {
+                name: Some(user.name.clone()),
+                admin: user.admin,
+            },
+            None if health => Caller {
+                name: None,
+                admin: false,
+            },
+            None => return unauthorized(),
         }
-    }
-    next.run(request).await
+    } else {
+        if let Some(token) = &state.config.token
+            && !health
+        {
+            use subtle::ConstantTimeEq;
+            let expected = crate::users::token_hash(token);
+            let given = crate::users::token_hash(presented.as_deref().unwrap_or(""));
+            if presented.is_none() || !bool::from(expected.ct_eq(&given)) {
+                return unauthorized();
+            }
+        }
+        Caller {
+            name: None,
+            admin: true,
+        }
+    };
+    let logged = LoggedUser(caller.name.clone().unwrap_or_else(|| "-".into()));
+    request.extensions_mut().insert(caller);
+    let mut response = next.run(request).await;
+    response.extensions_mut().insert(logged);
+    response
+}
+
+fn forbidden(message: impl Into<String>) -> ApiError {
+    ApiError::new(StatusCode::FORBIDDEN, "forbidden", message)
 }
 
 /// One log line per request (method, path, status, duration, user), and the request count
@@ -120,7 +174,11 @@ pub(crate) struct LoggedUser(pub String);
 /// Prometheus text exposition of the queue (from the database) and this process's counters.
 async fn metrics(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
 ) -> Result<Response, ApiError> {
+    if !caller.admin {
+        return Err(forbidden("/metrics is for admin tokens"));
+    }
     let by_state = state.db.count_by_status().await?;
     let running = state.db.running_leases().await?;
     let text = state.metrics.render(&by_state, &running);
@@ -157,6 +215,7 @@ fn body_error(e: BytesRejection) -> ApiError {
 
 async fn submit(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
@@ -195,14 +254,28 @@ async fn submit(
             &checked.scene,
             checked.particles,
             checked.end_time,
-            None,
+            caller.name.as_deref(),
             state.config.max_queued,
-            None,
+            state
+                .config
+                .users
+                .as_ref()
+                .map(|_| state.config.max_queued_per_user),
         )
         .await?;
     match inserted {
         db::Inserted::Queued => {}
-        db::Inserted::QueueFull | db::Inserted::UserQueueFull => {
+        db::Inserted::UserQueueFull => {
+            return Err(ApiError::new(
+                StatusCode::TOO_MANY_REQUESTS,
+                "user_queue_full",
+                format!(
+                    "you have {} jobs queued, the most a user may have; try later",
+                    state.config.max_queued_per_user
+                ),
+            ));
+        }
+        db::Inserted::QueueFull => {
             return Err(ApiError::new(
                 StatusCode::TOO_MANY_REQUESTS,
                 "queue_full",
@@ -214,7 +287,13 @@ async fn submit(
         }
     }
     state.jobs.wake.notify_one();
-    tracing::info!(job = %id, name = %checked.name, particles = checked.particles, "job queued");
+    tracing::info!(
+        job = %id,
+        name = %checked.name,
+        particles = checked.particles,
+        owner = caller.name.as_deref().unwrap_or("-"),
+        "job queued"
+    );
     let row = state
         .db
         .get(&id)
@@ -265,10 +344,14 @@ async fn validate_within_budget(
     let data_dir = state.config.data_dir.clone();
     let mut limits = state.config.limits;
     limits.max_particles = limits.max_particles.min(state.config.max_particles as u64);
-    let max_particles = state.config.max_particles;
+    let bounds = JobBounds {
+        max_particles: state.config.max_particles,
+        max_grid_bytes: state.config.max_grid_bytes,
+        max_steps: state.config.max_steps,
+    };
     let task = tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        check_scene(value, &registry, &data_dir, &limits, max_particles)
+        check_scene(value, &registry, &data_dir, &limits, &bounds)
     });
     match tokio::time::timeout_at(deadline, task).await {
         Ok(joined) => joined.map_err(ApiError::internal)?,
@@ -291,15 +374,29 @@ struct CheckedScene {
     end_time: f64,
 }
 
-/// Validates a submitted scene exactly as `mpm validate` does; particle files are refused
-/// (a request must not read files of the server).
+/// The service's own bounds on a job's work, beyond the scene limits.
+struct JobBounds {
+    max_particles: usize,
+    max_grid_bytes: Option<u64>,
+    max_steps: Option<u64>,
+}
+
+/// Bytes of grid storage per node: mass, momentum, force and the previous velocity.
+fn grid_bytes_per_node(dimension: u8) -> f64 {
+    8.0 * (1.0 + 3.0 * f64::from(dimension))
+}
+
+/// Validates a submitted scene exactly as `mpm validate` does, then against the service's
+/// bounds (particles, grid bytes, steps); particle files are refused (a request must not read
+/// files of the server).
 fn check_scene(
     value: serde_json::Value,
     registry: &mpm_core::plugin::Registry,
     data_dir: &std::path::Path,
     limits: &mpm_core::scene::Limits,
-    max_particles: usize,
+    bounds: &JobBounds,
 ) -> Result<CheckedScene, ApiError> {
+    let max_particles = bounds.max_particles;
     let invalid = |problems: Vec<Problem>| {
         let mut e = ApiError::new(
             StatusCode::UNPROCESSABLE_ENTITY,
@@ -325,12 +422,28 @@ fn check_scene(
     }
     // The particle count is estimated from the shapes before any is generated.
     if let Ok(scene) = mpm_core::scene::deserialize_at::<mpm_core::scene::Scene>(&value, "$") {
-        let estimate = mpm_core::scene::estimate(&scene).particles();
+        let estimated = mpm_core::scene::estimate(&scene);
+        let estimate = estimated.particles();
         if estimate > max_particles as f64 {
             return Err(too_many_particles(
                 format!("about {estimate:.3e} (estimated from its shapes)"),
                 max_particles,
             ));
+        }
+        if let Some(max) = bounds.max_grid_bytes {
+            let bytes = estimated.grid_nodes * grid_bytes_per_node(scene.dimension);
+            if bytes > max as f64 {
+                return Err(invalid(vec![Problem {
+                    path: "domain.cell_size".into(),
+                    message: format!(
+                        "the grid would take about {bytes:.3e} bytes ({:.3e} nodes of {} bytes); \
+                         this server accepts at most {max} (--max-grid-bytes): a larger cell size \
+                         or a smaller domain",
+                        estimated.grid_nodes,
+                        grid_bytes_per_node(scene.dimension)
+                    ),
+                }]));
+            }
         }
     }
     let validated = mpm_core::scene::parse_scene_value_limited(value, registry, data_dir, limits)
@@ -352,6 +465,23 @@ fn check_scene(
         };
         return Err(invalid(vec![Problem { path, message }]));
     }
+    if let Some(max) = bounds.max_steps {
+        let steps = mpm_core::solver::estimated_steps(&validated);
+        if steps > max as f64 {
+            let path = if validated.scene.solver.dt.is_some() {
+                "solver.dt"
+            } else {
+                "solver.end_time"
+            };
+            return Err(invalid(vec![Problem {
+                path: path.into(),
+                message: format!(
+                    "the run would take about {steps:.3e} time steps (end_time over the initial \
+                     step); this server accepts at most {max} per job (--max-steps)"
+                ),
+            }]));
+        }
+    }
     Ok(CheckedScene {
         name: validated.scene.name.clone(),
         scene: validated.json.to_string(),
@@ -363,12 +493,14 @@ fn check_scene(
 #[derive(Deserialize)]
 struct ListQuery {
     status: Option<String>,
+    owner: Option<String>,
     limit: Option<i64>,
     offset: Option<i64>,
 }
 
 async fn list_jobs(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     query: Result<Query<ListQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let Query(q) =
@@ -385,11 +517,22 @@ async fn list_jobs(
             format!("unknown status `{s}` (queued, running, succeeded, failed, cancelled)"),
         ));
     }
+    // A user lists their own jobs; an admin every job, or one owner's.
+    let owner = match (&caller.name, caller.admin) {
+        (_, true) => q.owner.clone(),
+        (Some(me), false) => {
+            if q.owner.as_ref().is_some_and(|o| o != me) {
+                return Err(forbidden("a user may list only their own jobs"));
+            }
+            Some(me.clone())
+        }
+        (None, false) => return Err(forbidden("no user")),
+    };
     let limit = q.limit.unwrap_or(100).clamp(1, 1000);
     let offset = q.offset.unwrap_or(0).max(0);
     let (rows, total) = state
         .db
-        .list(q.status.as_deref(), None, limit, offset)
+        .list(q.status.as_deref(), owner.as_deref(), limit, offset)
         .await?;
     let jobs: Vec<_> = rows.iter().map(|r| r.view()).collect();
     Ok(Json(
@@ -404,27 +547,32 @@ fn job_id(raw: &str) -> Result<String, ApiError> {
         .map_err(|_| ApiError::not_found(format!("no job `{raw}`")))
 }
 
-async fn find(state: &State, raw: &str) -> Result<db::JobRow, ApiError> {
+/// The job `raw` if the caller may see it; another user's job is as unknown as a missing
+/// one (404), so ids say nothing about other users.
+async fn find(state: &State, raw: &str, caller: &Caller) -> Result<db::JobRow, ApiError> {
     let id = job_id(raw)?;
     state
         .db
         .get(&id)
         .await?
+        .filter(|row| caller.may_see(row.owner.as_deref()))
         .ok_or_else(|| ApiError::not_found(format!("no job `{raw}`")))
 }
 
 async fn get_job(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<String>,
 ) -> Result<Json<db::JobView>, ApiError> {
-    Ok(Json(find(&state, &id).await?.view()))
+    Ok(Json(find(&state, &id, &caller).await?.view()))
 }
 
 async fn cancel_job(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<String>,
 ) -> Result<Json<db::JobView>, ApiError> {
-    let row = find(&state, &id).await?;
+    let row = find(&state, &id, &caller).await?;
     if db::is_final(&row.status) {
         return Err(ApiError::new(
             StatusCode::CONFLICT,
@@ -437,22 +585,23 @@ async fn cancel_job(
         state.db.request_cancel(&row.id).await?;
         state.jobs.cancel(&row.id);
         for _ in 0..100 {
-            let now = find(&state, &row.id).await?;
+            let now = find(&state, &row.id, &caller).await?;
             if db::is_final(&now.status) {
                 return Ok(Json(now.view()));
             }
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
     }
-    Ok(Json(find(&state, &row.id).await?.view()))
+    Ok(Json(find(&state, &row.id, &caller).await?.view()))
 }
 
 async fn events(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     Extension(stop): Extension<watch::Receiver<bool>>,
     Path(id): Path<String>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let row = find(&state, &id).await?;
+    let row = find(&state, &id, &caller).await?;
     // Sends the job whenever its status or step changed; ends at a final state or when the
     // server shuts down (an open stream would otherwise hold the shutdown).
     let stream = stream::unfold(
@@ -495,9 +644,10 @@ async fn events(
 /// Every file of a job's result store, as paths relative to `results/`.
 async fn files(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<String>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let row = find(&state, &id).await?;
+    let row = find(&state, &id, &caller).await?;
     let root = worker::results_path(&state, &row.id);
     let list = tokio::task::spawn_blocking(move || {
         let mut out = Vec::new();
@@ -525,21 +675,28 @@ async fn files(
 
 async fn results_root(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    serve_file(&state, &id, "zarr.json").await
+    serve_file(&state, &id, "zarr.json", &caller).await
 }
 
 async fn results(
     axum::extract::State(state): axum::extract::State<Shared>,
+    Extension(caller): Extension<Caller>,
     Path((id, path)): Path<(String, String)>,
 ) -> Result<Response, ApiError> {
-    serve_file(&state, &id, &path).await
+    serve_file(&state, &id, &path, &caller).await
 }
 
 /// Serves one file of a job's store; any path that could leave the store is a 404.
-async fn serve_file(state: &State, id: &str, path: &str) -> Result<Response, ApiError> {
-    let row = find(state, id).await?;
+async fn serve_file(
+    state: &State,
+    id: &str,
+    path: &str,
+    caller: &Caller,
+) -> Result<Response, ApiError> {
+    let row = find(state, id, caller).await?;
     let relative = PathBuf::from(path);
     let safe = !path.is_empty()
         && !path.contains('\\')

@@ -10,12 +10,14 @@ mod child;
 mod db;
 mod error;
 mod metrics;
+mod users;
 mod worker;
 
 pub use api::ROUTES;
 pub use child::{JobCommand, default_job_memory, run_job_process};
 pub use error::ServiceError;
 pub use mpm_core::scene::Limits;
+pub use users::{User, Users, UsersError, token_hash};
 
 use mpm_core::plugin::Registry;
 use std::net::SocketAddr;
@@ -41,6 +43,17 @@ pub struct Config {
     pub poll: std::time::Duration,
     /// When set, every route but `/v1/health` needs `Authorization: Bearer <token>`.
     pub token: Option<String>,
+    /// Users (a token file): each sees and cancels only their own jobs, admins every job;
+    /// replaces `token` when set.
+    pub users: Option<Arc<Users>>,
+    /// Most queued jobs of one user (with `users`).
+    pub max_queued_per_user: usize,
+    /// Largest grid a submitted scene may need, bytes (estimated from the domain and cell
+    /// size before anything is built); `None`: only `limits.max_grid_nodes`.
+    pub max_grid_bytes: Option<u64>,
+    /// Most time steps a submitted scene may take (end_time over its initial step);
+    /// `None`: no bound beyond `limits`.
+    pub max_steps: Option<u64>,
     /// Jobs run at once (the solver already uses every core).
     pub workers: usize,
     /// Largest request body, bytes.
@@ -71,6 +84,10 @@ impl Default for Config {
             lease: std::time::Duration::from_secs(30),
             poll: std::time::Duration::from_millis(500),
             token: None,
+            users: None,
+            max_queued_per_user: 100,
+            max_grid_bytes: None,
+            max_steps: None,
             workers: 1,
             max_body_bytes: 2 * 1024 * 1024,
             max_particles: 5_000_000,
