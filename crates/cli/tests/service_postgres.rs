@@ -398,6 +398,36 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
         metrics.contains(&format!("mpm_jobs{{state=\"succeeded\"}} {}", ids.len())),
         "{metrics}"
     );
+
+    // A cancel made through the API reaches the worker on another process by its heartbeat.
+    let mut endless = long.clone();
+    endless["solver"]["end_time"] = json!(100.0);
+    endless["output"]["frames"] = json!(1000);
+    let cancel_id = submit(&url, &endless);
+    let since = Instant::now();
+    while get_json(&format!("{url}/v1/jobs/{cancel_id}"))["progress"]["steps"]
+        .as_i64()
+        .unwrap_or(0)
+        == 0
+    {
+        assert!(since.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let cancelled: Value = client()
+        .delete(format!("{url}/v1/jobs/{cancel_id}"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    assert_eq!(cancelled["status"], "cancelled", "{cancelled}");
+    assert_eq!(cancelled["metrics"]["outcome"], "cancelled");
+    assert_eq!(
+        pg.query(&format!(
+            "SELECT outcome FROM job_runs WHERE job_id = '{cancel_id}'"
+        )),
+        vec![vec!["cancelled".to_string()]]
+    );
+
     println!(
         "postgres: {} jobs, 2 workers (one killed with SIGKILL at {:.1} s in the middle of a job), \
          all ended in {:.1} s: {failures} failures, {duplicates} duplicate runs, {} runs lost to \
