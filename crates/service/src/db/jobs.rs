@@ -136,10 +136,7 @@ impl Db {
                 .bind(offset)
                 .fetch_all(pool)
                 .await?;
-            let count_sql = match self {
-                Db::Sqlite(_) => super::sqlite_text(&count_text),
-                Db::Postgres(_) => super::postgres_text(&count_text),
-            };
+            let count_sql = self.text(&count_text);
             let total: i64 = sqlx::query_scalar(&count_sql)
                 .bind(status)
                 .bind(owner)
@@ -205,10 +202,7 @@ impl Db {
                 Some(row) => {
                     let id: String = row.try_get(0)?;
                     let attempt: i64 = row.try_get(2)?;
-                    let run_sql = match self {
-                        Db::Sqlite(_) => super::sqlite_text(run),
-                        Db::Postgres(_) => super::postgres_text(run),
-                    };
+                    let run_sql = self.text(run);
                     sqlx::query(&run_sql)
                         .bind(&id)
                         .bind(attempt)
@@ -316,10 +310,7 @@ impl Db {
                 .rows_affected()
                 == 1;
             if done {
-                let run_sql = match self {
-                    Db::Sqlite(_) => super::sqlite_text(run),
-                    Db::Postgres(_) => super::postgres_text(run),
-                };
+                let run_sql = self.text(run);
                 sqlx::query(&run_sql)
                     .bind(id)
                     .bind(attempt)
@@ -375,15 +366,9 @@ impl Db {
              step = 0, sim_time = 0, wall_seconds = 0, lease_until = NULL \
              WHERE status = 'running' AND lease_until < ?1 RETURNING id, worker, status";
         Ok(on_backend!(self, pool, sql = jobs, {
-            let cutoff_sql = match self {
-                Db::Sqlite(_) => super::sqlite_text("SELECT {epoch}"),
-                Db::Postgres(_) => super::postgres_text("SELECT {epoch}"),
-            };
+            let cutoff_sql = self.text("SELECT {epoch}");
             let cutoff: f64 = sqlx::query_scalar(&cutoff_sql).fetch_one(pool).await?;
-            let runs_sql = match self {
-                Db::Sqlite(_) => super::sqlite_text(runs),
-                Db::Postgres(_) => super::postgres_text(runs),
-            };
+            let runs_sql = self.text(runs);
             sqlx::query(&runs_sql).bind(cutoff).execute(pool).await?;
             sqlx::query_as::<_, (String, Option<String>, String)>(&sql)
                 .bind(cutoff)

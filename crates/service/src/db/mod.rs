@@ -73,6 +73,15 @@ impl Db {
         Ok(Db::Sqlite(pool))
     }
 
+    /// A query's text translated for this backend (for a second query inside
+    /// [`on_backend!`]).
+    pub(crate) fn text(&self, sql: &str) -> String {
+        match self {
+            Db::Sqlite(_) => sqlite_text(sql),
+            Db::Postgres(_) => postgres_text(sql),
+        }
+    }
+
     /// `sqlite` or `postgres`, for logs.
     pub fn backend(&self) -> &'static str {
         match self {
@@ -136,5 +145,100 @@ mod tests {
         assert!(pg.contains("clock_timestamp()"));
         let lite = sqlite_text(q);
         assert!(lite.contains("?1") && lite.contains("julianday"));
+    }
+}
+
+#[cfg(test)]
+mod lease_tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// The lease rules on a real SQLite file (the PostgreSQL side runs in the mpm-cli test
+    /// `service_postgres`): writes need the claiming worker and a live lease, a lost lease is
+    /// never renewed, and an expired job is requeued with its run marked.
+    #[tokio::test]
+    async fn leases_guard_every_write_and_expired_jobs_are_requeued() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = Db::open_sqlite(&dir.path().join("q.sqlite")).await.unwrap();
+        let insert = |id: &'static str, owner: &'static str| {
+            let db = db.clone();
+            async move {
+                db.insert(id, "n", "{}", 1, 1.0, Some(owner), 10, Some(1))
+                    .await
+                    .unwrap()
+            }
+        };
+        assert_eq!(insert("a", "alice").await, Inserted::Queued);
+        assert_eq!(insert("b", "alice").await, Inserted::UserQueueFull);
+        assert_eq!(insert("c", "bob").await, Inserted::Queued);
+
+        let a = db.claim("w1", 0.5).await.unwrap().unwrap();
+        assert_eq!((a.id.as_str(), a.attempt), ("a", 1));
+        let c = db.claim("w2", 30.0).await.unwrap().unwrap();
+        assert_eq!(c.id, "c");
+        assert!(db.claim("w3", 30.0).await.unwrap().is_none());
+
+        assert_eq!(
+            db.heartbeat("a", "w2", 0.5).await.unwrap(),
+            None,
+            "not w2's"
+        );
+        assert_eq!(db.heartbeat("a", "w1", 0.5).await.unwrap(), Some(false));
+        assert!(db.request_cancel("c").await.unwrap());
+        assert_eq!(db.heartbeat("c", "w2", 30.0).await.unwrap(), Some(true));
+
+        tokio::time::sleep(Duration::from_millis(700)).await;
+        assert_eq!(db.heartbeat("a", "w1", 0.5).await.unwrap(), None, "lost");
+        assert!(
+            !db.finish("a", "w1", 1, "succeeded", None, None, None)
+                .await
+                .unwrap(),
+            "a run past its lease records nothing"
+        );
+        let requeued = db.requeue_expired().await.unwrap();
+        assert_eq!(requeued.len(), 1);
+        assert_eq!(
+            (requeued[0].id.as_str(), requeued[0].worker.as_deref()),
+            ("a", Some("w1"))
+        );
+        assert_eq!(requeued[0].status, "queued");
+
+        let again = db.claim("w2", 30.0).await.unwrap().unwrap();
+        assert_eq!((again.id.as_str(), again.attempt), ("a", 2));
+        assert!(
+            db.finish("a", "w2", 2, "succeeded", None, None, Some((5, 0.1, 0.2)))
+                .await
+                .unwrap()
+        );
+        let row = db.get("a").await.unwrap().unwrap();
+        assert_eq!(
+            (row.status.as_str(), row.attempts, row.step),
+            ("succeeded", 2, 5)
+        );
+
+        let Db::Sqlite(pool) = &db else {
+            unreachable!()
+        };
+        let runs: Vec<(String, i64, String, Option<String>)> = sqlx::query_as(
+            "SELECT job_id, attempt, worker, outcome FROM job_runs ORDER BY job_id, attempt",
+        )
+        .fetch_all(pool)
+        .await
+        .unwrap();
+        assert_eq!(
+            runs,
+            vec![
+                ("a".into(), 1, "w1".into(), Some("lease_expired".into())),
+                ("a".into(), 2, "w2".into(), Some("succeeded".into())),
+                ("c".into(), 1, "w2".into(), None),
+            ]
+        );
+        // A clean stop gives the running job back; its pending cancel makes it cancelled.
+        let released = db.release("w2").await.unwrap();
+        assert_eq!(released.len(), 1);
+        assert_eq!(
+            (released[0].id.as_str(), released[0].status.as_str()),
+            ("c", "cancelled")
+        );
     }
 }
