@@ -20,7 +20,7 @@ pub enum LogFormat {
 #[derive(Debug, clap::Args)]
 pub struct QueueArgs {
     /// The job queue: `postgres://USER@HOST:PORT/DB` (shared by several machines) or a SQLite
-    /// file (default: DATA/jobs.sqlite).
+    /// file (`mpm serve`'s default: DATA/jobs.sqlite; `mpm worker` needs it given).
     #[arg(long, env = "MPM_DATABASE")]
     pub database: Option<String>,
     /// Seconds a running job's lease lasts; its worker renews it every second (or every third
@@ -194,6 +194,11 @@ pub fn serve(args: ServeArgs, registry: Arc<Registry>) -> anyhow::Result<ExitSta
 /// `mpm worker`.
 pub fn worker(args: WorkerArgs, registry: Arc<Registry>) -> anyhow::Result<ExitStatus> {
     init_logs(args.queue.log_format);
+    if args.queue.database.is_none() {
+        return Err(crate::exit_status::input_error!(
+            "mpm worker needs --database (or MPM_DATABASE): the queue it shares with `mpm serve`"
+        ));
+    }
     let config = mpm_service::Config {
         data_dir: args.store.clone(),
         store_dir: Some(args.store),
