@@ -325,7 +325,6 @@ fn job_transitions_are_logged_and_counted_in_metrics() {
         "mpm_jobs{state=\"succeeded\"} 1",
         "mpm_job_queue_wait_seconds_count 1",
         "mpm_job_run_seconds_count 1",
-        "mpm_jobs_finished_total{status=\"succeeded\"} 1",
         "mpm_worker_last_heartbeat_seconds{worker=",
     ] {
         assert!(text.contains(expected), "{expected} in\n{text}");

@@ -398,6 +398,28 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
         metrics.contains(&format!("mpm_jobs{{state=\"succeeded\"}} {}", ids.len())),
         "{metrics}"
     );
+    // The API process runs no job, yet shows every job's times and both workers' heartbeats
+    // (from the database); the killed worker's heartbeat is the older.
+    for expected in [
+        format!("mpm_job_queue_wait_seconds_count {}", ids.len()),
+        format!("mpm_job_run_seconds_count {}", ids.len()),
+    ] {
+        assert!(metrics.contains(&expected), "{expected} in\n{metrics}");
+    }
+    let age = |worker: &str| -> f64 {
+        metrics
+            .lines()
+            .find_map(|l| {
+                l.strip_prefix(&format!(
+                    "mpm_worker_heartbeat_age_seconds{{worker=\"{worker}\"}} "
+                ))
+            })
+            .unwrap_or_else(|| panic!("no heartbeat of {worker} in\n{metrics}"))
+            .parse()
+            .unwrap()
+    };
+    let survivor = &long_runs[1][2];
+    assert!(age(&killed_name) > age(survivor), "{metrics}");
 
     // A cancel made through the API reaches the worker on another process by its heartbeat.
     let mut endless = long.clone();

@@ -1,5 +1,6 @@
-//! Counters of this process for `/metrics`, written out by hand in the Prometheus text
-//! exposition format (version 0.0.4): a few histograms and gauges do not need a crate.
+//! `/metrics`, written out by hand in the Prometheus text exposition format (version 0.0.4):
+//! a few histograms and gauges do not need a crate. Jobs and workers come from the database
+//! (every machine's), requests from this process.
 
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -40,82 +41,45 @@ impl Histogram {
     }
 }
 
-#[derive(Default)]
-struct Inner {
-    queue_wait: Histogram,
-    run_time: Histogram,
-    finished: BTreeMap<String, u64>,
-    heartbeats: BTreeMap<String, f64>,
-    particle_steps: f64,
-    run_seconds: f64,
-    last_rate: f64,
-    requests: BTreeMap<(String, u16), u64>,
+/// What `/metrics` shows, read from the database at each scrape (so every worker and job of
+/// the queue, whichever machine ran it).
+pub struct Snapshot {
+    /// Jobs per status.
+    pub by_state: Vec<(String, i64)>,
+    /// Worker and seconds left of its lease, per running job.
+    pub running: Vec<(String, f64)>,
+    /// Worker and the epoch seconds of its last heartbeat.
+    pub workers: Vec<(String, f64)>,
+    /// The database's clock, epoch seconds.
+    pub now: f64,
+    /// Times of the jobs that were claimed.
+    pub jobs: Vec<crate::db::JobTimes>,
 }
 
-/// This process's counters: jobs claimed and finished here, requests answered here.
+/// This process's own counters (requests it answered).
 #[derive(Default)]
 pub struct Metrics {
-    inner: Mutex<Inner>,
-}
-
-fn now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
+    requests: Mutex<BTreeMap<(String, u16), u64>>,
 }
 
 impl Metrics {
-    fn with(&self, f: impl FnOnce(&mut Inner)) {
-        if let Ok(mut inner) = self.inner.lock() {
-            f(&mut inner);
+    /// A request was answered.
+    pub fn request(&self, method: &str, status: u16) {
+        if let Ok(mut r) = self.requests.lock() {
+            *r.entry((method.to_string(), status)).or_default() += 1;
         }
     }
 
-    /// A worker of this process started.
-    pub fn worker_started(&self, worker: &str) {
-        self.heartbeat(worker);
-    }
-
-    /// A worker of this process is alive (its loop turned or its lease was renewed).
-    pub fn heartbeat(&self, worker: &str) {
-        self.with(|i| {
-            i.heartbeats.insert(worker.to_string(), now());
-        });
-    }
-
-    /// A job was claimed after waiting `waited` seconds in the queue.
-    pub fn claimed(&self, waited: f64) {
-        self.with(|i| i.queue_wait.observe(waited));
-    }
-
-    /// A job ended in `status` after `wall` seconds of running and `particle_steps` work.
-    pub fn finished(&self, status: &str, wall: f64, particle_steps: f64) {
-        self.with(|i| {
-            *i.finished.entry(status.to_string()).or_default() += 1;
-            i.run_time.observe(wall);
-            i.particle_steps += particle_steps;
-            i.run_seconds += wall;
-            if wall > 0.0 {
-                i.last_rate = particle_steps / wall;
-            }
-        });
-    }
-
-    /// A request was answered.
-    pub fn request(&self, method: &str, status: u16) {
-        self.with(|i| *i.requests.entry((method.to_string(), status)).or_default() += 1);
-    }
-
-    /// The exposition text: `by_state` (jobs per status, from the database) and
-    /// `running` (worker, seconds left of its lease, from the database) come from the caller.
-    pub fn render(&self, by_state: &[(String, i64)], running: &[(String, f64)]) -> String {
+    /// The exposition text of `snapshot` and this process's counters.
+    pub fn render(&self, snapshot: &Snapshot) -> String {
         let mut out = String::new();
         let _ = writeln!(
             out,
-            "# HELP mpm_jobs Jobs in the queue database by state.\n# TYPE mpm_jobs gauge"
+            "# HELP mpm_jobs Jobs in the queue by state.\n# TYPE mpm_jobs gauge"
         );
         for state in ["queued", "running", "succeeded", "failed", "cancelled"] {
-            let n = by_state
+            let n = snapshot
+                .by_state
                 .iter()
                 .find(|(s, _)| s == state)
                 .map_or(0, |(_, n)| *n);
@@ -123,40 +87,20 @@ impl Metrics {
         }
         let _ = writeln!(
             out,
-            "# HELP mpm_running_job_lease_seconds Seconds left of each running job's lease, by worker (all workers of the database).\n# TYPE mpm_running_job_lease_seconds gauge"
+            "# HELP mpm_running_job_lease_seconds Seconds left of each running job's lease, by worker.\n# TYPE mpm_running_job_lease_seconds gauge"
         );
-        for (worker, left) in running {
+        for (worker, left) in &snapshot.running {
             let _ = writeln!(
                 out,
                 "mpm_running_job_lease_seconds{{worker=\"{}\"}} {left}",
                 escape(worker)
             );
         }
-        let Ok(i) = self.inner.lock() else {
-            return out;
-        };
-        i.queue_wait.write(
-            &mut out,
-            "mpm_job_queue_wait_seconds",
-            "Time from submission to claim of jobs claimed by this process's workers.",
-        );
-        i.run_time.write(
-            &mut out,
-            "mpm_job_run_seconds",
-            "Run time of jobs finished by this process's workers.",
-        );
         let _ = writeln!(
             out,
-            "# HELP mpm_jobs_finished_total Jobs finished by this process's workers.\n# TYPE mpm_jobs_finished_total counter"
+            "# HELP mpm_worker_last_heartbeat_seconds Unix time of each worker's last heartbeat (workers stopped cleanly are removed; a dead one's stays behind).\n# TYPE mpm_worker_last_heartbeat_seconds gauge"
         );
-        for (status, n) in &i.finished {
-            let _ = writeln!(out, "mpm_jobs_finished_total{{status=\"{status}\"}} {n}");
-        }
-        let _ = writeln!(
-            out,
-            "# HELP mpm_worker_last_heartbeat_seconds Unix time of each worker's last heartbeat (this process's workers).\n# TYPE mpm_worker_last_heartbeat_seconds gauge"
-        );
-        for (worker, t) in &i.heartbeats {
+        for (worker, t) in &snapshot.workers {
             let _ = writeln!(
                 out,
                 "mpm_worker_last_heartbeat_seconds{{worker=\"{}\"}} {t}",
@@ -165,32 +109,63 @@ impl Metrics {
         }
         let _ = writeln!(
             out,
-            "# HELP mpm_particle_steps_total Particles times steps computed by this process's jobs.\n# TYPE mpm_particle_steps_total counter\nmpm_particle_steps_total {}",
-            i.particle_steps
+            "# HELP mpm_worker_heartbeat_age_seconds Seconds since each worker's last heartbeat, on the database's clock.\n# TYPE mpm_worker_heartbeat_age_seconds gauge"
         );
-        let rate = if i.run_seconds > 0.0 {
-            i.particle_steps / i.run_seconds
+        for (worker, t) in &snapshot.workers {
+            let _ = writeln!(
+                out,
+                "mpm_worker_heartbeat_age_seconds{{worker=\"{}\"}} {}",
+                escape(worker),
+                (snapshot.now - t).max(0.0)
+            );
+        }
+        let mut wait = Histogram::default();
+        let mut run = Histogram::default();
+        let (mut particle_steps, mut run_seconds) = (0.0, 0.0);
+        for j in &snapshot.jobs {
+            if let Some(w) = j.waited {
+                wait.observe(w);
+            }
+            if matches!(j.status.as_str(), "succeeded" | "failed" | "cancelled") {
+                run.observe(j.wall_seconds);
+                particle_steps += j.particle_steps;
+                run_seconds += j.wall_seconds;
+            }
+        }
+        wait.write(
+            &mut out,
+            "mpm_job_queue_wait_seconds",
+            "Time from submission to the (last) claim of every claimed job.",
+        );
+        run.write(
+            &mut out,
+            "mpm_job_run_seconds",
+            "Wall time of the (last) run of every ended job.",
+        );
+        let rate = if run_seconds > 0.0 {
+            particle_steps / run_seconds
         } else {
             0.0
         };
         let _ = writeln!(
             out,
-            "# HELP mpm_particle_steps_per_second Particle-steps per second of run time, over all jobs of this process.\n# TYPE mpm_particle_steps_per_second gauge\nmpm_particle_steps_per_second {rate}"
+            "# HELP mpm_particle_steps_total Particles times steps of the ended jobs' runs.\n# TYPE mpm_particle_steps_total counter\nmpm_particle_steps_total {particle_steps}"
         );
         let _ = writeln!(
             out,
-            "# HELP mpm_last_job_particle_steps_per_second Particle-steps per second of the last job finished here.\n# TYPE mpm_last_job_particle_steps_per_second gauge\nmpm_last_job_particle_steps_per_second {}",
-            i.last_rate
+            "# HELP mpm_particle_steps_per_second Particle-steps per second of run time over the ended jobs.\n# TYPE mpm_particle_steps_per_second gauge\nmpm_particle_steps_per_second {rate}"
         );
         let _ = writeln!(
             out,
             "# HELP mpm_http_requests_total Requests answered by this process.\n# TYPE mpm_http_requests_total counter"
         );
-        for ((method, status), n) in &i.requests {
-            let _ = writeln!(
-                out,
-                "mpm_http_requests_total{{method=\"{method}\",status=\"{status}\"}} {n}"
-            );
+        if let Ok(requests) = self.requests.lock() {
+            for ((method, status), n) in requests.iter() {
+                let _ = writeln!(
+                    out,
+                    "mpm_http_requests_total{{method=\"{method}\",status=\"{status}\"}} {n}"
+                );
+            }
         }
         out
     }
@@ -206,20 +181,37 @@ fn escape(v: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::db::JobTimes;
 
     #[test]
     fn histograms_are_cumulative_and_text_parses() {
         let m = Metrics::default();
-        m.claimed(0.2);
-        m.claimed(3.0);
-        m.finished("succeeded", 2.0, 1000.0);
-        let text = m.render(&[("queued".into(), 4)], &[("h:1:0".into(), 2.5)]);
+        m.request("GET", 200);
+        let job = |status: &str, waited: f64, wall: f64| JobTimes {
+            status: status.into(),
+            waited: Some(waited),
+            wall_seconds: wall,
+            particle_steps: 1000.0 * wall,
+        };
+        let text = m.render(&Snapshot {
+            by_state: vec![("queued".into(), 4)],
+            running: vec![("h:1:0".into(), 2.5)],
+            workers: vec![("h:1:0".into(), 100.0)],
+            now: 103.0,
+            jobs: vec![job("succeeded", 0.2, 2.0), job("running", 3.0, 0.5)],
+        });
         assert!(text.contains("mpm_jobs{state=\"queued\"} 4"));
         assert!(text.contains("mpm_jobs{state=\"failed\"} 0"));
         assert!(text.contains("mpm_job_queue_wait_seconds_bucket{le=\"0.25\"} 1"));
         assert!(text.contains("mpm_job_queue_wait_seconds_bucket{le=\"5\"} 2"));
         assert!(text.contains("mpm_job_queue_wait_seconds_count 2"));
-        assert!(text.contains("mpm_particle_steps_per_second 500"));
+        assert!(
+            text.contains("mpm_job_run_seconds_count 1"),
+            "running jobs have no run time yet"
+        );
+        assert!(text.contains("mpm_particle_steps_per_second 1000"));
+        assert!(text.contains("mpm_worker_heartbeat_age_seconds{worker=\"h:1:0\"} 3"));
+        assert!(text.contains("mpm_http_requests_total{method=\"GET\",status=\"200\"} 1"));
         for line in text.lines().filter(|l| !l.starts_with('#')) {
             let value = line.rsplit(' ').next().unwrap();
             assert!(value.parse::<f64>().is_ok(), "{line}");

@@ -95,7 +95,7 @@ fn host_name() -> String {
 /// running go back to the queue at once.
 pub async fn run(state: Arc<State>, name: String, mut stop: watch::Receiver<bool>) {
     let lease = state.config.lease.as_secs_f64();
-    state.metrics.worker_started(&name);
+    seen(&state, &name).await;
     tracing::info!(worker = %name, database = state.db.backend(), "worker started");
     loop {
         if *stop.borrow() {
@@ -125,7 +125,6 @@ pub async fn run(state: Arc<State>, name: String, mut stop: watch::Receiver<bool
                     waited_s = claimed.waited,
                     "job claimed"
                 );
-                state.metrics.claimed(claimed.waited);
                 run_job(&state, &name, claimed).await;
             }
             Ok(None) => {
@@ -140,7 +139,7 @@ pub async fn run(state: Arc<State>, name: String, mut stop: watch::Receiver<bool
                 tokio::time::sleep(Duration::from_secs(1)).await;
             }
         }
-        state.metrics.heartbeat(&name);
+        seen(&state, &name).await;
     }
     match state.db.release(&name).await {
         Ok(released) => {
@@ -150,7 +149,17 @@ pub async fn run(state: Arc<State>, name: String, mut stop: watch::Receiver<bool
         }
         Err(e) => tracing::error!(worker = %name, error = %e, "giving back running jobs failed"),
     }
+    if let Err(e) = state.db.worker_gone(&name).await {
+        tracing::warn!(worker = %name, error = %e, "removing the worker's heartbeat failed");
+    }
     tracing::info!(worker = %name, "worker stopped");
+}
+
+/// Records the worker's heartbeat (for `/metrics`); a failure is only logged.
+async fn seen(state: &State, worker: &str) {
+    if let Err(e) = state.db.worker_seen(worker).await {
+        tracing::warn!(worker = %worker, error = %e, "recording the worker's heartbeat failed");
+    }
 }
 
 /// Renews the lease of a running job every third of the lease; raises `cancel` when the
@@ -170,7 +179,7 @@ async fn keep_lease(
         tokio::time::sleep(every).await;
         match state.db.heartbeat(&id, &worker, lease.as_secs_f64()).await {
             Ok(Some(cancel_requested)) => {
-                state.metrics.heartbeat(&worker);
+                seen(&state, &worker).await;
                 if cancel_requested {
                     cancel.store(true, Ordering::Relaxed);
                 }
@@ -280,13 +289,23 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     {
         Ok(true) => {
             let (steps, _, wall) = progress.unwrap_or_default();
-            state
-                .metrics
-                .finished(status, wall, steps as f64 * particles as f64);
+            let rate = if wall > 0.0 {
+                steps as f64 * particles as f64 / wall
+            } else {
+                0.0
+            };
             if status == "failed" {
                 tracing::warn!(job = %id, worker = %worker, status, failure = failure_message.as_deref().unwrap_or(""), "job failed");
             } else {
-                tracing::info!(job = %id, worker = %worker, status, steps, wall_s = wall, "job finished");
+                tracing::info!(
+                    job = %id,
+                    worker = %worker,
+                    status,
+                    steps,
+                    wall_s = wall,
+                    particle_steps_per_s = rate,
+                    "job finished"
+                );
             }
         }
         Ok(false) => tracing::warn!(

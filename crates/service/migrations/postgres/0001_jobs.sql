@@ -34,3 +34,8 @@ CREATE TABLE job_runs (
     outcome    TEXT,
     PRIMARY KEY (job_id, attempt)
 );
+CREATE TABLE workers (
+    name       TEXT PRIMARY KEY,
+    started_at TEXT NOT NULL DEFAULT (to_char(clock_timestamp() AT TIME ZONE 'UTC', 'YYYY-MM-DD"T"HH24:MI:SS.MS"Z"')),
+    last_seen  DOUBLE PRECISION NOT NULL
+);

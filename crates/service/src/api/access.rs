@@ -130,9 +130,15 @@ pub(super) async fn metrics(
     if !caller.admin {
         return Err(forbidden("/metrics is for admin tokens"));
     }
-    let by_state = state.db.count_by_status().await?;
-    let running = state.db.running_leases().await?;
-    let text = state.metrics.render(&by_state, &running);
+    let (workers, now) = state.db.workers().await?;
+    let snapshot = crate::metrics::Snapshot {
+        by_state: state.db.count_by_status().await?,
+        running: state.db.running_leases().await?,
+        workers,
+        now,
+        jobs: state.db.job_times().await?,
+    };
+    let text = state.metrics.render(&snapshot);
     Ok((
         [(
             header::CONTENT_TYPE,

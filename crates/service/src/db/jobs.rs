@@ -411,32 +411,34 @@ impl Db {
     }
 }
 
-/// Seconds from a stored timestamp (`%Y-%m-%dT%H:%M:%S.fffZ`, UTC) to now; 0 if unreadable.
+/// Seconds since the epoch of a stored timestamp (`%Y-%m-%dT%H:%M:%S.fffZ`, UTC).
+pub(crate) fn epoch_of(stamp: &str) -> Option<f64> {
+    let (date, time) = stamp.trim_end_matches('Z').split_once('T')?;
+    let mut d = date.split('-').map(|p| p.parse::<i64>());
+    let (y, m, day) = (d.next()?.ok()?, d.next()?.ok()?, d.next()?.ok()?);
+    let mut t = time.split(':');
+    let (h, min) = (
+        t.next()?.parse::<f64>().ok()?,
+        t.next()?.parse::<f64>().ok()?,
+    );
+    let s = t.next()?.parse::<f64>().ok()?;
+    // Days from the civil date (Howard Hinnant's algorithm).
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + day - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days = era * 146_097 + doe - 719_468;
+    Some(days as f64 * 86_400.0 + h * 3600.0 + min * 60.0 + s)
+}
+
+/// Seconds from a stored timestamp to now; 0 if unreadable.
 fn seconds_since(stamp: &str) -> f64 {
-    let parse = || -> Option<f64> {
-        let (date, time) = stamp.trim_end_matches('Z').split_once('T')?;
-        let mut d = date.split('-').map(|p| p.parse::<i64>());
-        let (y, m, day) = (d.next()?.ok()?, d.next()?.ok()?, d.next()?.ok()?);
-        let mut t = time.split(':');
-        let (h, min) = (
-            t.next()?.parse::<f64>().ok()?,
-            t.next()?.parse::<f64>().ok()?,
-        );
-        let s = t.next()?.parse::<f64>().ok()?;
-        // Days from the civil date (Howard Hinnant's algorithm).
-        let y = if m <= 2 { y - 1 } else { y };
-        let era = y.div_euclid(400);
-        let yoe = y - era * 400;
-        let mp = (m + 9) % 12;
-        let doy = (153 * mp + 2) / 5 + day - 1;
-        let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-        let days = era * 146_097 + doe - 719_468;
-        Some(days as f64 * 86_400.0 + h * 3600.0 + min * 60.0 + s)
-    };
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64());
-    parse().map_or(0.0, |t| (now - t).max(0.0))
+    epoch_of(stamp).map_or(0.0, |t| (now - t).max(0.0))
 }
 
 #[cfg(test)]

@@ -10,9 +10,11 @@
 //! in one place.
 
 mod jobs;
+mod stats;
 mod view;
 
 pub use jobs::*;
+pub use stats::*;
 pub use view::*;
 
 use crate::ServiceError;
@@ -233,6 +235,17 @@ mod lease_tests {
                 ("c".into(), 1, "w2".into(), None),
             ]
         );
+        let times = db.job_times().await.unwrap();
+        let a_times = times.iter().find(|t| t.status == "succeeded").unwrap();
+        assert_eq!((a_times.wall_seconds, a_times.particle_steps), (0.2, 5.0));
+        assert!(a_times.waited.unwrap() >= 0.7, "{a_times:?}");
+        db.worker_seen("w1").await.unwrap();
+        db.worker_seen("w2").await.unwrap();
+        db.worker_gone("w1").await.unwrap();
+        let (workers, now) = db.workers().await.unwrap();
+        assert_eq!(workers.len(), 1);
+        assert_eq!(workers[0].0, "w2");
+        assert!((now - workers[0].1).abs() < 5.0);
         // A clean stop gives the running job back; its pending cancel makes it cancelled.
         let released = db.release("w2").await.unwrap();
         assert_eq!(released.len(), 1);
