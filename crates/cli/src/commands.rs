@@ -145,39 +145,11 @@ pub enum Command {
         #[command(subcommand)]
         command: crate::rom::RomCommand,
     },
-    /// Start the job service (HTTP API over a SQLite job queue).
-    Serve {
-        /// Address to listen on.
-        #[arg(long, default_value = "127.0.0.1:8080", env = "MPM_LISTEN")]
-        listen: std::net::SocketAddr,
-        /// Folder for the job database and results.
-        #[arg(long, default_value = "mpm-data", env = "MPM_DATA")]
-        data: PathBuf,
-        /// Require `Authorization: Bearer TOKEN` on every route but /v1/health.
-        #[arg(long, env = "MPM_TOKEN")]
-        token: Option<String>,
-        /// Jobs run at once.
-        #[arg(long, default_value_t = 1)]
-        workers: usize,
-        /// Largest request body, bytes.
-        #[arg(long, default_value_t = 2 * 1024 * 1024)]
-        max_body_bytes: usize,
-        /// Largest particle count of a submitted scene.
-        #[arg(long, default_value_t = 5_000_000)]
-        max_particles: usize,
-        /// Most queued jobs.
-        #[arg(long, default_value_t = 1000)]
-        max_queued: usize,
-        /// Longest a submitted scene's validation may take, seconds (then 422).
-        #[arg(long, default_value_t = 10.0)]
-        validation_seconds: f64,
-        /// Validations at once (default: one per core).
-        #[arg(long)]
-        max_validations: Option<usize>,
-        /// Memory limit of each job's process, MB (default: half the machine's memory).
-        #[arg(long, default_value_t = 0)]
-        job_memory_mb: u64,
-    },
+    /// Start the job service (HTTP API over a SQLite or PostgreSQL job queue, with workers).
+    Serve(crate::service_cmd::ServeArgs),
+    /// Run workers of the job service without the HTTP API (any number of machines sharing a
+    /// PostgreSQL queue and a result folder).
+    Worker(crate::service_cmd::WorkerArgs),
     /// Run one job of `mpm serve` in a process of its own (used by the service).
     #[command(hide = true)]
     RunJob(crate::job::RunJobArgs),
@@ -379,45 +351,8 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             print_catalogue(&catalogue, schemas)?;
             Ok(ExitStatus::Success)
         }
-        Command::Serve {
-            listen,
-            data,
-            token,
-            workers,
-            max_body_bytes,
-            max_particles,
-            max_queued,
-            validation_seconds,
-            max_validations,
-            job_memory_mb,
-        } => {
-            let limits = mpm_core::scene::Limits::current();
-            let defaults = mpm_service::Config::default();
-            let config = mpm_service::Config {
-                listen,
-                data_dir: data,
-                token,
-                workers,
-                max_body_bytes,
-                max_particles,
-                max_queued,
-                limits,
-                validation_timeout: std::time::Duration::try_from_secs_f64(validation_seconds)
-                    .context("--validation-seconds must be a number of seconds >= 0")?,
-                max_validations: max_validations.unwrap_or(defaults.max_validations),
-                job_command: Some(crate::job::job_command(&limits, job_memory_mb)?),
-            };
-            let registry = registry.clone();
-            let runtime = tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
-                .enable_all()
-                .build()
-                .context("starting the async runtime")?;
-            runtime.block_on(mpm_service::serve(config, registry, async {
-                let _ = tokio::signal::ctrl_c().await;
-            }))?;
-            Ok(ExitStatus::Success)
-        }
+        Command::Serve(args) => crate::service_cmd::serve(args, registry.clone()),
+        Command::Worker(args) => crate::service_cmd::worker(args, registry.clone()),
         Command::CheckStability { only, json } => {
             let all = crate::stability::cases();
             let names: Vec<&str> = all.iter().map(|c| c.name).collect();

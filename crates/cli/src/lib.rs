@@ -12,6 +12,7 @@ mod render;
 pub mod rom;
 mod scene_file;
 mod schema;
+mod service_cmd;
 pub mod stability;
 pub mod stability_implicit;
 mod stdout;

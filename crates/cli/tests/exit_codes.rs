@@ -20,7 +20,10 @@ fn command(args: &[&str], dir: &Path) -> Command {
         .env_remove("MPM_SERVER")
         .env_remove("MPM_TOKEN")
         .env_remove("MPM_LISTEN")
-        .env_remove("MPM_DATA");
+        .env_remove("MPM_DATA")
+        .env_remove("MPM_DATABASE")
+        .env_remove("MPM_STORE")
+        .env_remove("MPM_TOKENS");
     c
 }
 
@@ -323,6 +326,12 @@ fn invalid_input_exits_2_and_writes_nothing() {
         (vec!["frobnicate"], 2, "frobnicate"),
         (vec!["run"], 2, "SCENE"),
         (vec!["serve", "--listen", "nowhere"], 2, "--listen"),
+        (vec!["worker", "--store", "results"], 2, "--database"),
+        (
+            vec!["serve", "--token", "t", "--tokens", "file"],
+            2,
+            "--tokens",
+        ),
         (
             vec![
                 "rom", "train", "--runs", "r", "--latent", "two", "--out", "m",

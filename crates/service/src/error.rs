@@ -64,7 +64,7 @@ impl ApiError {
 
     /// 500 for a failure of the service itself (details are logged, not sent).
     pub fn internal(e: impl std::fmt::Display) -> Self {
-        eprintln!("internal error: {e}");
+        tracing::error!(error = %e, "internal error");
         Self::new(
             StatusCode::INTERNAL_SERVER_ERROR,
             "internal",

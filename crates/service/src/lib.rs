@@ -1,18 +1,23 @@
-//! The mpm job service: an HTTP API (axum) over a SQLite job queue (sqlx). Workers take jobs
-//! in submission order, run them with the core solver off the async threads, and store the
-//! results as Zarr in the data folder, served read-only so zarr-python can open them over
-//! HTTP. Knows no physics: scenes are validated by the registry the binary passes in.
+//! The mpm job service: an HTTP API (axum) over a job queue in SQLite or PostgreSQL (sqlx).
+//! Workers (in the API's process, or in `mpm worker` processes on other machines) take jobs
+//! in submission order under a lease, run them with the core solver off the async threads,
+//! and store the results as Zarr in the store folder, served read-only so zarr-python can
+//! open them over HTTP. Knows no physics: scenes are validated by the registry the binary
+//! passes in.
 
 mod api;
 mod child;
 mod db;
 mod error;
+mod metrics;
+mod users;
 mod worker;
 
 pub use api::ROUTES;
 pub use child::{JobCommand, default_job_memory, run_job_process};
 pub use error::ServiceError;
 pub use mpm_core::scene::Limits;
+pub use users::{User, Users, UsersError, token_hash};
 
 use mpm_core::plugin::Registry;
 use std::net::SocketAddr;
@@ -26,8 +31,29 @@ pub struct Config {
     pub listen: SocketAddr,
     /// Folder for the job database (`jobs.sqlite`) and the results (`jobs/<id>/results.zarr`).
     pub data_dir: PathBuf,
+    /// The queue database: `postgres://...`, or a SQLite file; `None`: `data_dir/jobs.sqlite`.
+    pub database: Option<String>,
+    /// Folder of the result stores (`<id>/results.zarr`), shared by the API and every
+    /// worker; `None`: `data_dir/jobs`.
+    pub store_dir: Option<PathBuf>,
+    /// A running job's lease: its worker renews it every third of this; a job whose lease
+    /// ran out (its worker died) goes back to the queue.
+    pub lease: std::time::Duration,
+    /// How often an idle worker looks for a job (jobs queued by this process wake it at once).
+    pub poll: std::time::Duration,
     /// When set, every route but `/v1/health` needs `Authorization: Bearer <token>`.
     pub token: Option<String>,
+    /// Users (a token file): each sees and cancels only their own jobs, admins every job;
+    /// replaces `token` when set.
+    pub users: Option<Arc<Users>>,
+    /// Most queued jobs of one user (with `users`).
+    pub max_queued_per_user: usize,
+    /// Largest grid a submitted scene may need, bytes (estimated from the domain and cell
+    /// size before anything is built); `None`: only `limits.max_grid_nodes`.
+    pub max_grid_bytes: Option<u64>,
+    /// Most time steps a submitted scene may take (end_time over its initial step);
+    /// `None`: no bound beyond `limits`.
+    pub max_steps: Option<u64>,
     /// Jobs run at once (the solver already uses every core).
     pub workers: usize,
     /// Largest request body, bytes.
@@ -53,7 +79,15 @@ impl Default for Config {
         Self {
             listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
             data_dir: PathBuf::from("mpm-data"),
+            database: None,
+            store_dir: None,
+            lease: std::time::Duration::from_secs(30),
+            poll: std::time::Duration::from_millis(500),
             token: None,
+            users: None,
+            max_queued_per_user: 100,
+            max_grid_bytes: None,
+            max_steps: None,
             workers: 1,
             max_body_bytes: 2 * 1024 * 1024,
             max_particles: 5_000_000,
@@ -66,36 +100,71 @@ impl Default for Config {
     }
 }
 
+impl Config {
+    /// Where the result stores are.
+    pub fn store_root(&self) -> PathBuf {
+        self.store_dir
+            .clone()
+            .unwrap_or_else(|| self.data_dir.join("jobs"))
+    }
+
+    /// The database to open.
+    fn database_url(&self) -> String {
+        self.database.clone().unwrap_or_else(|| {
+            self.data_dir
+                .join("jobs.sqlite")
+                .to_string_lossy()
+                .into_owned()
+        })
+    }
+}
+
 /// Shared state of a running service.
 pub(crate) struct State {
     pub config: Config,
     pub registry: Arc<Registry>,
-    pub db: sqlx::SqlitePool,
+    pub db: db::Db,
     pub jobs: worker::JobBoard,
     /// Permits for validations running at once.
     pub validations: Arc<tokio::sync::Semaphore>,
+    /// This process's counters for `/metrics`.
+    pub metrics: metrics::Metrics,
 }
 
-/// Runs the service until `shutdown` resolves. Prints `listening on http://ADDR` once the
-/// socket is bound (tests read the port from it).
+/// Creates the folders, opens the database and builds the shared state.
+async fn start(config: Config, registry: Arc<Registry>) -> Result<Arc<State>, ServiceError> {
+    let store = config.store_root();
+    std::fs::create_dir_all(&store).map_err(|e| ServiceError::Io {
+        path: store.display().to_string(),
+        source: e,
+    })?;
+    let db = db::Db::open(&config.database_url()).await?;
+    Ok(Arc::new(State {
+        validations: Arc::new(tokio::sync::Semaphore::new(config.max_validations.max(1))),
+        config,
+        registry,
+        db,
+        jobs: worker::JobBoard::default(),
+        metrics: metrics::Metrics::default(),
+    }))
+}
+
+/// Runs the service until `shutdown` resolves: the HTTP API and `config.workers` workers
+/// (0: API only, the jobs run in `mpm worker` processes). Prints `listening on http://ADDR`
+/// once the socket is bound (tests read the port from it).
 pub async fn serve(
     config: Config,
     registry: Arc<Registry>,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServiceError> {
-    std::fs::create_dir_all(config.data_dir.join("jobs")).map_err(|e| ServiceError::Io {
-        path: config.data_dir.display().to_string(),
-        source: e,
-    })?;
-    let db = db::open(&config.data_dir.join("jobs.sqlite")).await?;
-    let requeued = db::requeue_interrupted(&db).await?;
-    let state = Arc::new(State {
-        config: config.clone(),
-        registry,
-        db,
-        jobs: worker::JobBoard::default(),
-        validations: Arc::new(tokio::sync::Semaphore::new(config.max_validations.max(1))),
-    });
+    let state = start(config.clone(), registry).await?;
+    // With SQLite the service's own workers are the only ones: whatever was running when it
+    // last stopped is requeued now. With PostgreSQL, other workers may be running jobs;
+    // leases tell the dead ones apart.
+    let requeued = match (&state.db, config.workers) {
+        (db::Db::Sqlite(_), 1..) => state.db.requeue_interrupted().await?,
+        _ => 0,
+    };
     let listener = tokio::net::TcpListener::bind(config.listen)
         .await
         .map_err(|e| ServiceError::Io {
@@ -107,12 +176,19 @@ pub async fn serve(
         source: e,
     })?;
     println!("listening on http://{addr}");
+    tracing::info!(%addr, database = state.db.backend(), workers = config.workers, "listening");
     if requeued > 0 {
         println!("requeued {requeued} job(s) interrupted by the last shutdown");
+        tracing::info!(requeued, "jobs interrupted by the last shutdown requeued");
     }
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
-    for _ in 0..config.workers.max(1) {
-        tokio::spawn(worker::run(state.clone(), stop_rx.clone()));
+    let mut workers = Vec::new();
+    for n in 0..config.workers {
+        workers.push(tokio::spawn(worker::run(
+            state.clone(),
+            worker::worker_name(n),
+            stop_rx.clone(),
+        )));
     }
     let app = api::router(state.clone(), stop_rx.clone());
     let result = axum::serve(listener, app)
@@ -121,10 +197,38 @@ pub async fn serve(
             let _ = stop_tx.send(true);
         })
         .await;
-    // Running jobs see the stop flag and end within a step; they are requeued on restart.
+    // Running jobs see the stop flag and end within a step; their workers give them back.
     state.jobs.cancel_all();
+    for w in workers {
+        let _ = w.await;
+    }
     result.map_err(|e| ServiceError::Io {
         path: addr.to_string(),
         source: e,
     })
+}
+
+/// Runs `config.workers` workers (at least one) with no HTTP API until `shutdown` resolves:
+/// `mpm worker`, on any number of machines sharing a PostgreSQL queue and a result folder.
+pub async fn work(
+    config: Config,
+    registry: Arc<Registry>,
+    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
+) -> Result<(), ServiceError> {
+    let count = config.workers.max(1);
+    let state = start(config, registry).await?;
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let names: Vec<String> = (0..count).map(worker::worker_name).collect();
+    println!("workers {} on {}", names.join(", "), state.db.backend());
+    let workers: Vec<_> = names
+        .into_iter()
+        .map(|name| tokio::spawn(worker::run(state.clone(), name, stop_rx.clone())))
+        .collect();
+    shutdown.await;
+    let _ = stop_tx.send(true);
+    state.jobs.cancel_all();
+    for w in workers {
+        let _ = w.await;
+    }
+    Ok(())
 }

@@ -1,8 +1,11 @@
-//! Workers: take queued jobs in order and run them with the solver on a blocking thread,
-//! reporting progress at a bounded rate and honouring cancellation within one step.
+//! Workers: take queued jobs in order under a lease renewed by a heartbeat, run each in a
+//! process of its own (or on a blocking thread), report progress at a bounded rate and honour
+//! cancellation within one step. A job whose worker died goes back to the queue when its
+//! lease runs out; any worker requeues it.
 
+use crate::State;
 use crate::child::ChildEnd;
-use crate::{State, db};
+use crate::db::Claimed;
 use mpm_core::solver::{Control, Progress, RunError, run_scene};
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -57,49 +60,165 @@ impl JobBoard {
     }
 }
 
-/// Where a job's results live.
+/// Where a job's results live: `<store>/<id>/results.zarr`.
 pub fn results_path(state: &State, id: &str) -> PathBuf {
-    state
-        .config
-        .data_dir
-        .join("jobs")
-        .join(id)
-        .join("results.zarr")
+    state.config.store_root().join(id).join("results.zarr")
 }
 
-/// One worker's loop.
-pub async fn run(state: Arc<State>, mut stop: watch::Receiver<bool>) {
+/// A name for this process's `n`th worker that is unique across machines:
+/// `host:pid:n`.
+pub fn worker_name(n: usize) -> String {
+    format!("{}:{}:{n}", host_name(), std::process::id())
+}
+
+/// This machine's host name (`localhost` when it cannot be read).
+fn host_name() -> String {
+    #[cfg(unix)]
+    {
+        let mut buf = [0u8; 256];
+        // SAFETY: the buffer is valid for its length; gethostname writes at most that.
+        let ok = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) } == 0;
+        if ok {
+            let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+            if let Ok(name) = std::str::from_utf8(&buf[..end])
+                && !name.is_empty()
+            {
+                return name.to_string();
+            }
+        }
+    }
+    "localhost".to_string()
+}
+
+/// One worker's loop: requeue jobs whose lease ran out, claim the oldest queued job, run
+/// it under a lease renewed by a heartbeat; until `stop`. On a stop, the jobs it was
+/// running go back to the queue at once.
+pub async fn run(state: Arc<State>, name: String, mut stop: watch::Receiver<bool>) {
+    let lease = state.config.lease.as_secs_f64();
+    seen(&state, &name).await;
+    tracing::info!(worker = %name, database = state.db.backend(), "worker started");
     loop {
         if *stop.borrow() {
-            return;
+            break;
         }
-        match db::claim(&state.db).await {
-            Ok(Some((id, scene))) => run_job(&state, id, scene).await,
+        match state.db.requeue_expired().await {
+            Ok(requeued) => {
+                for r in requeued {
+                    tracing::warn!(
+                        job = %r.id,
+                        lost_by = r.worker.as_deref().unwrap_or("?"),
+                        status = %r.status,
+                        "job requeued: its worker's lease ran out"
+                    );
+                }
+            }
+            Err(e) => {
+                tracing::error!(worker = %name, error = %e, "requeueing expired leases failed")
+            }
+        }
+        match state.db.claim(&name, lease).await {
+            Ok(Some(claimed)) => {
+                tracing::info!(
+                    job = %claimed.id,
+                    worker = %name,
+                    attempt = claimed.attempt,
+                    waited_s = claimed.waited,
+                    "job claimed"
+                );
+                run_job(&state, &name, claimed).await;
+            }
             Ok(None) => {
                 tokio::select! {
                     _ = state.jobs.wake.notified() => {}
-                    _ = tokio::time::sleep(Duration::from_millis(500)) => {}
+                    _ = tokio::time::sleep(state.config.poll) => {}
                     _ = stop.changed() => {}
                 }
             }
             Err(e) => {
-                eprintln!("worker: claiming a job failed: {e}");
+                tracing::error!(worker = %name, error = %e, "claiming a job failed");
                 tokio::time::sleep(Duration::from_secs(1)).await;
             }
+        }
+        seen(&state, &name).await;
+    }
+    match state.db.release(&name).await {
+        Ok(released) => {
+            for r in released {
+                tracing::info!(job = %r.id, worker = %name, status = %r.status, "job requeued: its worker stopped");
+            }
+        }
+        Err(e) => tracing::error!(worker = %name, error = %e, "giving back running jobs failed"),
+    }
+    if let Err(e) = state.db.worker_gone(&name).await {
+        tracing::warn!(worker = %name, error = %e, "removing the worker's heartbeat failed");
+    }
+    tracing::info!(worker = %name, "worker stopped");
+}
+
+/// Records the worker's heartbeat (for `/metrics`); a failure is only logged.
+async fn seen(state: &State, worker: &str) {
+    if let Err(e) = state.db.worker_seen(worker).await {
+        tracing::warn!(worker = %worker, error = %e, "recording the worker's heartbeat failed");
+    }
+}
+
+/// Renews the lease of a running job every third of the lease; raises `cancel` when the
+/// lease is lost or a cancellation was requested (possibly by an API process elsewhere).
+/// Returns whether the lease was lost.
+async fn keep_lease(
+    state: Arc<State>,
+    id: String,
+    worker: String,
+    cancel: Arc<AtomicBool>,
+) -> bool {
+    let lease = state.config.lease;
+    // At least every second, so that a cancellation from an API process elsewhere is seen
+    // within a second.
+    let every = (lease / 3).clamp(Duration::from_millis(100), Duration::from_secs(1));
+    loop {
+        tokio::time::sleep(every).await;
+        match state.db.heartbeat(&id, &worker, lease.as_secs_f64()).await {
+            Ok(Some(cancel_requested)) => {
+                seen(&state, &worker).await;
+                if cancel_requested {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            }
+            Ok(None) => {
+                tracing::warn!(job = %id, worker = %worker, "lease lost: stopping the run");
+                cancel.store(true, Ordering::Relaxed);
+                return true;
+            }
+            // A database hiccup: try again; the lease covers two more beats.
+            Err(e) => tracing::warn!(job = %id, worker = %worker, error = %e, "heartbeat failed"),
         }
     }
 }
 
-async fn run_job(state: &Arc<State>, id: String, scene: String) {
+async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
+    let Claimed {
+        id,
+        scene,
+        attempt,
+        particles,
+        ..
+    } = claimed;
     let flag = state.jobs.register(&id);
+    let heartbeat = tokio::spawn(keep_lease(
+        state.clone(),
+        id.clone(),
+        worker.to_string(),
+        flag.clone(),
+    ));
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(u64, f64, f64)>();
     let writer = {
         let db = state.db.clone();
         let id = id.clone();
+        let worker = worker.to_string();
         tokio::spawn(async move {
             while let Some((step, time, wall)) = rx.recv().await {
-                if let Err(e) = db::progress(&db, &id, step, time, wall).await {
-                    eprintln!("job {id}: writing progress failed: {e}");
+                if let Err(e) = db.progress(&id, &worker, step, time, wall).await {
+                    tracing::warn!(job = %id, error = %e, "writing progress failed");
                 }
             }
         })
@@ -126,52 +245,75 @@ async fn run_job(state: &Arc<State>, id: String, scene: String) {
     };
     let _ = writer.await;
     state.jobs.remove(&id);
+    let lost = if heartbeat.is_finished() {
+        heartbeat.await.unwrap_or(false)
+    } else {
+        heartbeat.abort();
+        false
+    };
+    if lost {
+        // Another worker may own the job now; nothing of this run is recorded.
+        return;
+    }
     let progress = *last.lock().expect("progress lock");
+    let shutting_down = state.jobs.shutting_down.load(Ordering::Relaxed);
     let failed =
         |message: String| serde_json::to_string(&serde_json::json!({ "message": message })).ok();
-    let result = match outcome {
+    let (status, metrics, failure, progress) = match outcome {
         ChildEnd::Metrics(m) => {
             let metrics = serde_json::to_string(&m).ok();
             match m["outcome"].as_str() {
-                Some("finished") => {
-                    db::finish(&state.db, &id, "succeeded", metrics, None, Some(progress)).await
-                }
-                Some("cancelled") if state.jobs.shutting_down.load(Ordering::Relaxed) => {
-                    // Left `running`: the next start requeues it.
-                    Ok(())
-                }
-                Some("cancelled") => {
-                    db::finish(&state.db, &id, "cancelled", metrics, None, Some(progress)).await
-                }
+                Some("finished") => ("succeeded", metrics, None, Some(progress)),
+                // Left `running`: the worker gives it back to the queue as it stops.
+                Some("cancelled") if shutting_down => return,
+                Some("cancelled") => ("cancelled", metrics, None, Some(progress)),
                 _ => {
                     let failure = serde_json::to_string(&serde_json::json!({
                         "message": "the run stopped on a check",
                         "diagnostic": m["diagnostic"],
                     }))
                     .ok();
-                    db::finish(&state.db, &id, "failed", metrics, failure, Some(progress)).await
+                    ("failed", metrics, failure, Some(progress))
                 }
             }
         }
-        ChildEnd::Refused(message) => {
-            db::finish(&state.db, &id, "failed", None, failed(message), None).await
-        }
-        ChildEnd::Crashed(_) if state.jobs.shutting_down.load(Ordering::Relaxed) => Ok(()),
-        ChildEnd::Crashed(message) => {
-            eprintln!("job {id}: {message}");
-            db::finish(
-                &state.db,
-                &id,
-                "failed",
-                None,
-                failed(message),
-                Some(progress),
-            )
-            .await
-        }
+        ChildEnd::Refused(message) => ("failed", None, failed(message), None),
+        ChildEnd::Crashed(_) if shutting_down => return,
+        ChildEnd::Crashed(message) => ("failed", None, failed(message), Some(progress)),
     };
-    if let Err(e) = result {
-        eprintln!("job {id}: recording its end failed: {e}");
+    let failure_message = failure.clone();
+    match state
+        .db
+        .finish(&id, worker, attempt, status, metrics, failure, progress)
+        .await
+    {
+        Ok(true) => {
+            let (steps, _, wall) = progress.unwrap_or_default();
+            let rate = if wall > 0.0 {
+                steps as f64 * particles as f64 / wall
+            } else {
+                0.0
+            };
+            if status == "failed" {
+                tracing::warn!(job = %id, worker = %worker, status, failure = failure_message.as_deref().unwrap_or(""), "job failed");
+            } else {
+                tracing::info!(
+                    job = %id,
+                    worker = %worker,
+                    status,
+                    steps,
+                    wall_s = wall,
+                    particle_steps_per_s = rate,
+                    "job finished"
+                );
+            }
+        }
+        Ok(false) => tracing::warn!(
+            job = %id,
+            worker = %worker,
+            "the run ended after its lease ran out; its result is not recorded"
+        ),
+        Err(e) => tracing::error!(job = %id, error = %e, "recording the job's end failed"),
     }
 }
 

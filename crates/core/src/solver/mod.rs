@@ -206,6 +206,22 @@ pub fn preflight(scene: &ValidatedScene) -> Result<(), RunError> {
     dispatch(scene, Check)
 }
 
+/// Steps a scene would take at its initial state's time step, without running a step (see
+/// [`Simulation::estimated_steps`]); job services bound a job's work with it.
+pub fn estimated_steps(scene: &ValidatedScene) -> f64 {
+    struct Steps;
+    impl SimulationVisitor for Steps {
+        type Output = f64;
+        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> f64
+        where
+            dyn Material: DimensionDispatch<D>,
+        {
+            sim.estimated_steps()
+        }
+    }
+    dispatch(scene, Steps)
+}
+
 /// Particle storage a scene allocates, bytes per particle, without running it.
 pub fn bytes_per_particle(scene: &ValidatedScene) -> f64 {
     struct Bytes;

@@ -145,6 +145,22 @@ where
         }
     }
 
+    /// Steps the run would take at the initial state's step (the fixed one, or the CFL
+    /// number times the stable one): `end_time / dt`. An estimate for bounding a job's work
+    /// before it runs; the step may shrink later, as particles speed up.
+    pub fn estimated_steps(&mut self) -> f64 {
+        self.initialise();
+        let dt = self
+            .settings
+            .fixed_dt
+            .unwrap_or(self.settings.cfl * self.stable_dt());
+        if dt > 0.0 {
+            (self.settings.end_time / dt).ceil()
+        } else {
+            f64::INFINITY
+        }
+    }
+
     /// Computes the initial stress and refuses a fixed time step above the stable one.
     pub fn preflight(&mut self) -> Result<(), RunError> {
         self.initialise();

@@ -1,0 +1,463 @@
+//! The job service across processes on a real PostgreSQL: the test starts its own server
+//! (initdb in a temporary folder, a free loopback port, the socket in that folder), one API
+//! process (`mpm serve --workers 0`) and two `mpm worker` processes, submits many jobs, kills
+//! one worker with SIGKILL in the middle of a job, and checks that every job finished exactly
+//! once with a complete store. Skips (with a message) only when no PostgreSQL binaries are
+//! installed; `.ci/run` installs them.
+
+mod common;
+
+use common::*;
+use reqwest::blocking::Client;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Small jobs submitted besides the one that is interrupted.
+const SMALL_JOBS: usize = 100;
+
+/// The folder holding `initdb`, `pg_ctl`, `createdb` and `psql`: `$PG_BIN`, else the newest
+/// `/usr/lib/postgresql/*/bin` (Debian), else the folder of `pg_ctl` on the PATH.
+fn postgres_bin() -> Option<PathBuf> {
+    let has_all = |dir: &Path| {
+        ["initdb", "pg_ctl", "createdb", "psql"]
+            .iter()
+            .all(|b| dir.join(b).is_file())
+    };
+    if let Some(dir) = std::env::var_os("PG_BIN").map(PathBuf::from) {
+        return has_all(&dir).then_some(dir);
+    }
+    let mut debian: Vec<(u32, PathBuf)> = std::fs::read_dir("/usr/lib/postgresql")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let version = e.file_name().to_str()?.parse::<u32>().ok()?;
+            Some((version, e.path().join("bin")))
+        })
+        .filter(|(_, dir)| has_all(dir))
+        .collect();
+    debian.sort();
+    if let Some((_, dir)) = debian.pop() {
+        return Some(dir);
+    }
+    std::env::var_os("PATH").and_then(|path| std::env::split_paths(&path).find(|dir| has_all(dir)))
+}
+
+/// A PostgreSQL server of this test; stopped (immediately) and deleted when dropped, also
+/// when the test fails.
+struct Postgres {
+    bin: PathBuf,
+    dir: tempfile::TempDir,
+    /// Runs the server's commands as this user (PostgreSQL refuses to run as root).
+    user: Option<String>,
+    port: u16,
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+}
+
+impl Postgres {
+    fn command(&self, program: &str) -> Command {
+        let path = self.bin.join(program);
+        match &self.user {
+            Some(user) => {
+                let mut c = Command::new("runuser");
+                c.args(["-u", user, "--"]).arg(path);
+                c
+            }
+            None => Command::new(path),
+        }
+    }
+
+    fn start(bin: PathBuf) -> Postgres {
+        let dir = tempfile::tempdir().unwrap();
+        // As root: the server runs as `postgres` (the Debian package's user), which must own
+        // the folder.
+        let user = is_root().then(|| "postgres".to_string());
+        if let Some(user) = &user {
+            let status = Command::new("chown")
+                .arg(user)
+                .arg(dir.path())
+                .status()
+                .unwrap();
+            assert!(
+                status.success(),
+                "chown {user} failed: is there a `{user}` user?"
+            );
+        }
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let pg = Postgres {
+            bin,
+            dir,
+            user,
+            port,
+        };
+        let data = pg.dir.path().join("data");
+        let o = pg
+            .command("initdb")
+            .args(["-A", "trust", "-U", "mpm", "-E", "UTF8", "--no-sync", "-D"])
+            .arg(&data)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "initdb: {}", text(&o));
+        let options = format!(
+            "-p {port} -k {} -c listen_addresses=127.0.0.1 -c fsync=off \
+             -c synchronous_commit=off -c full_page_writes=off",
+            pg.dir.path().display()
+        );
+        let o = pg
+            .command("pg_ctl")
+            .args(["-w", "-t", "60", "-D"])
+            .arg(&data)
+            .args(["-o", &options, "-l"])
+            .arg(pg.dir.path().join("server.log"))
+            .arg("start")
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "pg_ctl start: {}", text(&o));
+        let o = pg
+            .command("createdb")
+            .args([
+                "-h",
+                "127.0.0.1",
+                "-p",
+                &port.to_string(),
+                "-U",
+                "mpm",
+                "mpm",
+            ])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "createdb: {}", text(&o));
+        pg
+    }
+
+    fn url(&self) -> String {
+        format!("postgres://mpm@127.0.0.1:{}/mpm", self.port)
+    }
+
+    /// Rows of a query, columns split on `|`.
+    fn query(&self, sql: &str) -> Vec<Vec<String>> {
+        let o = Command::new(self.bin.join("psql"))
+            .args(["-h", "127.0.0.1", "-p", &self.port.to_string(), "-U", "mpm"])
+            .args(["-d", "mpm", "-A", "-t", "-F", "|", "-c", sql])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "psql: {}", text(&o));
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter(|l| !l.is_empty())
+            .map(|l| l.split('|').map(str::to_string).collect())
+            .collect()
+    }
+}
+
+impl Drop for Postgres {
+    fn drop(&mut self) {
+        let _ = self
+            .command("pg_ctl")
+            .args(["-D"])
+            .arg(self.dir.path().join("data"))
+            .args(["-m", "immediate", "-w", "stop"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status();
+    }
+}
+
+/// A child process killed (SIGKILL) and reaped when dropped.
+struct Process(Child);
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn client() -> Client {
+    Client::builder()
+        .timeout(Duration::from_secs(60))
+        .build()
+        .unwrap()
+}
+
+fn submit(url: &str, scene: &Value) -> String {
+    let r = client()
+        .post(format!("{url}/v1/jobs"))
+        .json(scene)
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 202);
+    r.json::<Value>().unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string()
+}
+
+fn get_json(url: &str) -> Value {
+    client().get(url).send().unwrap().json().unwrap()
+}
+
+#[test]
+fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
+    let Some(bin) = postgres_bin() else {
+        println!(
+            "SKIPPED: no PostgreSQL binaries (initdb, pg_ctl, createdb, psql) found in $PG_BIN, \
+             /usr/lib/postgresql/*/bin or the PATH; install the `postgresql` package (.ci/run does)"
+        );
+        return;
+    };
+    let pg = Postgres::start(bin);
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let mpm = env!("CARGO_BIN_EXE_mpm");
+    let (api, url) = serve(
+        Command::new(mpm)
+            .args(["serve", "--listen", "127.0.0.1:0", "--workers", "0"])
+            .arg("--data")
+            .arg(dir.path().join("api"))
+            .arg("--store")
+            .arg(&store)
+            .args(["--database", &pg.url()])
+            .env("RUST_LOG", "warn"),
+    );
+    let _api = Process(api);
+    let start_worker = |n: usize| {
+        let log = std::fs::File::create(dir.path().join(format!("worker{n}.log"))).unwrap();
+        Process(
+            Command::new(mpm)
+                .args(["worker", "--database", &pg.url(), "--lease-seconds", "2"])
+                .arg("--store")
+                .arg(&store)
+                .stdout(Stdio::null())
+                .stderr(log)
+                .spawn()
+                .unwrap(),
+        )
+    };
+    let mut workers = [Some(start_worker(1)), Some(start_worker(2))];
+
+    // One job long enough to be caught running (a second or so), then the small ones.
+    let start = Instant::now();
+    let mut long = bar_json();
+    long["domain"]["cell_size"] = json!(0.0125);
+    long["solver"]["end_time"] = json!(1.0);
+    long["output"]["frames"] = json!(10);
+    let long_id = submit(&url, &long);
+    let mut small = bar_json();
+    small["solver"]["end_time"] = json!(0.01);
+    small["output"]["frames"] = json!(4);
+    let mut ids = vec![long_id.clone()];
+    ids.extend((0..SMALL_JOBS).map(|_| submit(&url, &small)));
+
+    // Kill (SIGKILL) whichever worker runs the long job once it has made progress.
+    let killed_name = loop {
+        let j = get_json(&format!("{url}/v1/jobs/{long_id}"));
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the long job never ran: {j}"
+        );
+        if j["status"] == "running" && j["progress"]["steps"].as_i64().unwrap_or(0) > 0 {
+            let worker = j["worker"].as_str().unwrap().to_string();
+            let slot = workers
+                .iter_mut()
+                .find(|w| {
+                    w.as_ref()
+                        .is_some_and(|p| worker.contains(&format!(":{}:", p.0.id())))
+                })
+                .expect("the job's worker is one of ours");
+            let mut process = slot.take().unwrap();
+            process.0.kill().unwrap();
+            process.0.wait().unwrap();
+            break worker;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let killed_at = start.elapsed();
+
+    // Every job ends.
+    let mut statuses = BTreeMap::new();
+    for id in &ids {
+        let j = loop {
+            let j = get_json(&format!("{url}/v1/jobs/{id}"));
+            if matches!(
+                j["status"].as_str(),
+                Some("succeeded" | "failed" | "cancelled")
+            ) {
+                break j;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(180),
+                "job {id} did not end: {j}\nworker logs:\n{}\n{}",
+                std::fs::read_to_string(dir.path().join("worker1.log")).unwrap_or_default(),
+                std::fs::read_to_string(dir.path().join("worker2.log")).unwrap_or_default()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        *statuses
+            .entry(j["status"].as_str().unwrap().to_string())
+            .or_insert(0) += 1;
+    }
+    let elapsed = start.elapsed();
+    let failures = ids.len() - statuses.get("succeeded").copied().unwrap_or(0);
+
+    // The runs table: exactly one successful run per job, nothing left open, and the only
+    // other runs are the killed worker's, ended by its lease.
+    let runs = pg.query("SELECT job_id, attempt, worker, COALESCE(outcome, 'open') FROM job_runs");
+    let mut per_job: BTreeMap<&str, Vec<&Vec<String>>> = BTreeMap::new();
+    for r in &runs {
+        per_job.entry(r[0].as_str()).or_default().push(r);
+    }
+    assert_eq!(per_job.len(), ids.len(), "every job ran");
+    let mut duplicates = 0;
+    for id in &ids {
+        let mine = &per_job[id.as_str()];
+        let succeeded = mine.iter().filter(|r| r[3] == "succeeded").count();
+        duplicates += succeeded.saturating_sub(1);
+        assert_eq!(succeeded, 1, "job {id} succeeded once: {mine:?}");
+        for r in mine.iter().filter(|r| r[3] != "succeeded") {
+            assert_eq!(r[3], "lease_expired", "{r:?}");
+            assert_eq!(
+                r[2], killed_name,
+                "only the killed worker lost a run: {r:?}"
+            );
+        }
+    }
+    let mut long_runs = per_job[long_id.as_str()].clone();
+    long_runs.sort_by_key(|r| r[1].parse::<i64>().unwrap());
+    assert_eq!(
+        long_runs.len(),
+        2,
+        "the interrupted job ran twice: {long_runs:?}"
+    );
+    assert_eq!(
+        (
+            long_runs[0][1].as_str(),
+            long_runs[0][2].as_str(),
+            long_runs[0][3].as_str()
+        ),
+        ("1", killed_name.as_str(), "lease_expired")
+    );
+    assert_eq!(
+        (long_runs[1][1].as_str(), long_runs[1][3].as_str()),
+        ("2", "succeeded")
+    );
+    assert_ne!(
+        long_runs[1][2], killed_name,
+        "the surviving worker reran it"
+    );
+    let attempts = pg.query("SELECT COUNT(*), SUM(attempts) FROM jobs");
+    assert_eq!(attempts[0][0], ids.len().to_string());
+    assert_eq!(attempts[0][1], runs.len().to_string(), "attempts = runs");
+
+    // Every store is complete: all frames, and the metrics of a finished run.
+    for id in &ids {
+        let s = mpm_io::ResultStore::open(store.join(id).join("results.zarr")).unwrap();
+        let frames = if *id == long_id { 11 } else { 5 };
+        assert_eq!(s.frame_count().unwrap(), frames, "job {id}");
+        assert_eq!(s.attributes()["metrics"]["outcome"], "finished", "job {id}");
+    }
+    // The interrupted job's rerun equals a local run.
+    let job = get_json(&format!("{url}/v1/jobs/{long_id}"));
+    let local_dir = tempfile::tempdir().unwrap();
+    let path = write_scene(local_dir.path(), "long.json", &long);
+    let local = run(&load(&path, &[]));
+    assert_eq!(job["metrics"]["error"].as_f64(), local.error);
+
+    // The surviving worker logged the requeueing, naming the worker that lost the job.
+    let logs: String = (1..=2)
+        .map(|n| std::fs::read_to_string(dir.path().join(format!("worker{n}.log"))).unwrap())
+        .collect();
+    assert!(
+        logs.lines()
+            .any(|l| l.contains("job requeued: its worker's lease ran out")
+                && l.contains(&long_id)
+                && l.contains(&killed_name)),
+        "{logs}"
+    );
+
+    let metrics = client()
+        .get(format!("{url}/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    assert!(
+        metrics.contains(&format!("mpm_jobs{{state=\"succeeded\"}} {}", ids.len())),
+        "{metrics}"
+    );
+    // The API process runs no job, yet shows every job's times and both workers' heartbeats
+    // (from the database); the killed worker's heartbeat is the older.
+    for expected in [
+        format!("mpm_job_queue_wait_seconds_count {}", ids.len()),
+        format!("mpm_job_run_seconds_count {}", ids.len()),
+    ] {
+        assert!(metrics.contains(&expected), "{expected} in\n{metrics}");
+    }
+    let age = |worker: &str| -> f64 {
+        metrics
+            .lines()
+            .find_map(|l| {
+                l.strip_prefix(&format!(
+                    "mpm_worker_heartbeat_age_seconds{{worker=\"{worker}\"}} "
+                ))
+            })
+            .unwrap_or_else(|| panic!("no heartbeat of {worker} in\n{metrics}"))
+            .parse()
+            .unwrap()
+    };
+    let survivor = &long_runs[1][2];
+    assert!(age(&killed_name) > age(survivor), "{metrics}");
+
+    // A cancel made through the API reaches the worker on another process by its heartbeat.
+    let mut endless = long.clone();
+    endless["solver"]["end_time"] = json!(100.0);
+    endless["output"]["frames"] = json!(1000);
+    let cancel_id = submit(&url, &endless);
+    let since = Instant::now();
+    while get_json(&format!("{url}/v1/jobs/{cancel_id}"))["progress"]["steps"]
+        .as_i64()
+        .unwrap_or(0)
+        == 0
+    {
+        assert!(since.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let cancelled: Value = client()
+        .delete(format!("{url}/v1/jobs/{cancel_id}"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    assert_eq!(cancelled["status"], "cancelled", "{cancelled}");
+    assert_eq!(cancelled["metrics"]["outcome"], "cancelled");
+    assert_eq!(
+        pg.query(&format!(
+            "SELECT outcome FROM job_runs WHERE job_id = '{cancel_id}'"
+        )),
+        vec![vec!["cancelled".to_string()]]
+    );
+
+    println!(
+        "postgres: {} jobs, 2 workers (one killed with SIGKILL at {:.1} s in the middle of a job), \
+         all ended in {:.1} s: {failures} failures, {duplicates} duplicate runs, {} runs lost to \
+         the killed worker's lease",
+        ids.len(),
+        killed_at.as_secs_f64(),
+        elapsed.as_secs_f64(),
+        runs.len() - ids.len()
+    );
+    assert_eq!(failures, 0, "{statuses:?}");
+}

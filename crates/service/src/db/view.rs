@@ -1,0 +1,124 @@
+//! A job row as read from the database, and its JSON view for the API.
+
+use serde::Serialize;
+use sqlx::FromRow;
+
+/// A job row as the API shows it.
+#[derive(Clone, Debug, FromRow)]
+pub struct JobRow {
+    pub id: String,
+    pub name: String,
+    pub status: String,
+    pub particles: i64,
+    pub end_time: f64,
+    pub created_at: String,
+    pub started_at: Option<String>,
+    pub finished_at: Option<String>,
+    pub step: i64,
+    pub sim_time: f64,
+    pub wall_seconds: f64,
+    pub attempts: i64,
+    pub metrics: Option<String>,
+    pub failure: Option<String>,
+    pub owner: Option<String>,
+    pub worker: Option<String>,
+}
+
+pub(crate) const COLUMNS: &str = "id, name, status, particles, end_time, created_at, started_at, finished_at, \
+                       step, sim_time, wall_seconds, attempts, metrics, failure, owner, worker";
+
+/// Whether a status is final.
+pub fn is_final(status: &str) -> bool {
+    matches!(status, "succeeded" | "failed" | "cancelled")
+}
+
+/// The job as JSON for the API.
+#[derive(Debug, Serialize)]
+pub struct JobView {
+    pub id: String,
+    pub name: String,
+    pub status: String,
+    pub particles: i64,
+    pub created_at: String,
+    pub started_at: Option<String>,
+    pub finished_at: Option<String>,
+    pub attempts: i64,
+    /// The user who submitted it (when the service has users).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub owner: Option<String>,
+    /// The worker running it, or that ran it last.
+    pub worker: Option<String>,
+    pub progress: Progress,
+    pub metrics: Option<serde_json::Value>,
+    pub failure: Option<serde_json::Value>,
+    pub links: Links,
+}
+
+/// Progress of a job.
+#[derive(Debug, Serialize)]
+pub struct Progress {
+    pub steps: i64,
+    pub time: f64,
+    pub end_time: f64,
+    pub fraction: f64,
+    pub wall_seconds: f64,
+    pub eta_seconds: Option<f64>,
+}
+
+/// Where to find the rest of a job.
+#[derive(Debug, Serialize)]
+pub struct Links {
+    #[serde(rename = "self")]
+    pub this: String,
+    pub events: String,
+    pub results: String,
+    pub files: String,
+}
+
+impl JobRow {
+    /// The API view of this row.
+    pub fn view(&self) -> JobView {
+        let fraction = if self.status == "succeeded" {
+            1.0
+        } else {
+            (self.sim_time / self.end_time).clamp(0.0, 1.0)
+        };
+        let eta = (self.status == "running" && fraction > 0.0)
+            .then(|| self.wall_seconds * (1.0 - fraction) / fraction);
+        let base = format!("/v1/jobs/{}", self.id);
+        JobView {
+            id: self.id.clone(),
+            name: self.name.clone(),
+            status: self.status.clone(),
+            particles: self.particles,
+            created_at: self.created_at.clone(),
+            started_at: self.started_at.clone(),
+            finished_at: self.finished_at.clone(),
+            attempts: self.attempts,
+            owner: self.owner.clone(),
+            worker: self.worker.clone(),
+            progress: Progress {
+                steps: self.step,
+                time: self.sim_time,
+                end_time: self.end_time,
+                fraction,
+                wall_seconds: self.wall_seconds,
+                eta_seconds: eta,
+            },
+            metrics: self
+                .metrics
+                .as_deref()
+                .and_then(|m| serde_json::from_str(m).ok()),
+            failure: self
+                .failure
+                .as_deref()
+                .and_then(|m| serde_json::from_str(m).ok()),
+            links: Links {
+                events: format!("{base}/events"),
+                results: format!("{base}/results"),
+                files: format!("{base}/files"),
+                this: base,
+            },
+        }
+    }
+}
