@@ -6,9 +6,8 @@ mod common;
 use common::*;
 use reqwest::blocking::{Client, RequestBuilder};
 use serde_json::{Value, json};
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 /// `mpm serve` killed when dropped; its stderr (the log) goes to a file.
@@ -21,23 +20,14 @@ struct Server {
 impl Server {
     fn start(data: &Path, extra: &[&str]) -> Server {
         let log = data.with_extension("log");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_mpm"))
-            .args(["serve", "--listen", "127.0.0.1:0", "--data"])
-            .arg(data)
-            .args(extra)
-            .env_remove("RUST_LOG")
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(&log).unwrap())
-            .spawn()
-            .unwrap();
-        let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-        let url = loop {
-            let line = lines.next().expect("server prints its address").unwrap();
-            if let Some(url) = line.strip_prefix("listening on ") {
-                break url.to_string();
-            }
-        };
-        std::thread::spawn(move || for _ in lines {});
+        let (child, url) = serve(
+            Command::new(env!("CARGO_BIN_EXE_mpm"))
+                .args(["serve", "--listen", "127.0.0.1:0", "--data"])
+                .arg(data)
+                .args(extra)
+                .env_remove("RUST_LOG")
+                .stderr(std::fs::File::create(&log).unwrap()),
+        );
         Server { child, url, log }
     }
 

@@ -10,13 +10,21 @@ fn repo() -> PathBuf {
 }
 
 /// The commands of the README's ```sh blocks (of one section when `section` is given), with
-/// comments and a trailing `&` removed.
+/// comments and a trailing `&` removed and lines continued with `\` joined.
 fn shell_lines(section: Option<&str>) -> Vec<String> {
     let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
     let mut current = String::new();
     let mut inside = false;
     let mut lines = Vec::new();
+    let mut continued = String::new();
     for line in readme.lines() {
+        if inside && let Some(head) = line.trim_end().strip_suffix('\\') {
+            continued.push_str(head);
+            continued.push(' ');
+            continue;
+        }
+        let joined = std::mem::take(&mut continued) + line;
+        let line = joined.as_str();
         if let Some(title) = line.strip_prefix("## ") {
             current = title.to_string();
         }

@@ -79,11 +79,11 @@ pub fn text(o: &Output) -> String {
 }
 
 /// Spawns `command` (an `mpm serve` on `127.0.0.1:0`), waits for the address it prints and
-/// keeps draining its stdout so it never blocks; returns the child and its base URL.
+/// keeps draining its stdout so it never blocks; returns the child and its base URL. Its
+/// stderr goes where the caller set it (inherited by default).
 pub fn serve(command: &mut Command) -> (Child, String) {
     let mut child = command
         .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
         .spawn()
         .expect("mpm serve starts");
     let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
