@@ -85,40 +85,27 @@ impl Metrics {
                 .map_or(0, |(_, n)| *n);
             let _ = writeln!(out, "mpm_jobs{{state=\"{state}\"}} {n}");
         }
-        let _ = writeln!(
-            out,
-            "# HELP mpm_running_job_lease_seconds Seconds left of each running job's lease, by worker.\n# TYPE mpm_running_job_lease_seconds gauge"
+        per_worker(
+            &mut out,
+            "mpm_running_job_lease_seconds",
+            "Seconds left of each running job's lease, by worker.",
+            snapshot.running.iter().map(|(w, left)| (w.as_str(), *left)),
         );
-        for (worker, left) in &snapshot.running {
-            let _ = writeln!(
-                out,
-                "mpm_running_job_lease_seconds{{worker=\"{}\"}} {left}",
-                escape(worker)
-            );
-        }
-        let _ = writeln!(
-            out,
-            "# HELP mpm_worker_last_heartbeat_seconds Unix time of each worker's last heartbeat (workers stopped cleanly are removed; a dead one's stays behind).\n# TYPE mpm_worker_last_heartbeat_seconds gauge"
+        per_worker(
+            &mut out,
+            "mpm_worker_last_heartbeat_seconds",
+            "Unix time of each worker's last heartbeat (workers stopped cleanly are removed; a dead one's stays behind).",
+            snapshot.workers.iter().map(|(w, t)| (w.as_str(), *t)),
         );
-        for (worker, t) in &snapshot.workers {
-            let _ = writeln!(
-                out,
-                "mpm_worker_last_heartbeat_seconds{{worker=\"{}\"}} {t}",
-                escape(worker)
-            );
-        }
-        let _ = writeln!(
-            out,
-            "# HELP mpm_worker_heartbeat_age_seconds Seconds since each worker's last heartbeat, on the database's clock.\n# TYPE mpm_worker_heartbeat_age_seconds gauge"
+        per_worker(
+            &mut out,
+            "mpm_worker_heartbeat_age_seconds",
+            "Seconds since each worker's last heartbeat, on the database's clock.",
+            snapshot
+                .workers
+                .iter()
+                .map(|(w, t)| (w.as_str(), (snapshot.now - t).max(0.0))),
         );
-        for (worker, t) in &snapshot.workers {
-            let _ = writeln!(
-                out,
-                "mpm_worker_heartbeat_age_seconds{{worker=\"{}\"}} {}",
-                escape(worker),
-                (snapshot.now - t).max(0.0)
-            );
-        }
         let mut wait = Histogram::default();
         let mut run = Histogram::default();
         let (mut particle_steps, mut run_seconds) = (0.0, 0.0);
@@ -168,6 +155,19 @@ impl Metrics {
             }
         }
         out
+    }
+}
+
+/// A gauge family with one sample per worker.
+fn per_worker<'a>(
+    out: &mut String,
+    name: &str,
+    help: &str,
+    rows: impl Iterator<Item = (&'a str, f64)>,
+) {
+    let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} gauge");
+    for (worker, value) in rows {
+        let _ = writeln!(out, "{name}{{worker=\"{}\"}} {value}", escape(worker));
     }
 }
 
