@@ -16,7 +16,7 @@ use super::workspace::{INACTIVE, Workspace};
 use crate::kernels::Kernel;
 use crate::linear_solvers::sparse_cholesky::SparseCholesky;
 use crate::material::Material;
-use faer::sparse::Triplet;
+use faer::sparse::Pair;
 
 /// Most matrix entries (before summing duplicates) the assembly may make (~24 bytes each).
 const MAX_TRIPLETS: usize = 20_000_000;
@@ -84,8 +84,10 @@ where
     dyn Material: DimensionDispatch<D>,
 {
     let n = work.len();
-    let mut triplets = std::mem::take(&mut work.triplets);
-    triplets.clear();
+    let mut pairs = std::mem::take(&mut work.pairs);
+    let mut values = std::mem::take(&mut work.values);
+    pairs.clear();
+    values.clear();
     // Particles whose stencils start at the same node share every node pair: their element
     // matrices are summed in one block before the entries are listed (a quarter of the
     // entries in 2D with 2 particles per cell and direction, an eighth in 3D).
@@ -102,7 +104,8 @@ where
         .count();
     if runs * stencil * stencil * D * D / 2 + n > MAX_TRIPLETS {
         work.order = order;
-        work.triplets = triplets;
+        work.pairs = pairs;
+        work.values = values;
         return None;
     }
     let mut block = std::mem::take(&mut work.block);
@@ -151,7 +154,8 @@ where
                         for &(row, si) in &rows {
                             for (col, sj) in targets(work, dof_b, j) {
                                 if si != 0.0 && sj != 0.0 && col <= row {
-                                    triplets.push(Triplet::new(row, col, k * si * sj));
+                                    pairs.push(Pair::new(row, col));
+                                    values.push(k * si * sj);
                                 }
                             }
                         }
@@ -172,12 +176,15 @@ where
             if let Some(c) = inertia {
                 diag += c.c_u * work.mass[i / D];
             }
-            triplets.push(Triplet::new(i, i, diag));
+            pairs.push(Pair::new(i, i));
+            values.push(diag);
         } else {
-            triplets.push(Triplet::new(i, i, 1.0));
+            pairs.push(Pair::new(i, i));
+            values.push(1.0);
         }
     }
-    let result = SparseCholesky::factor(n, &triplets).ok();
-    work.triplets = triplets;
+    let result = SparseCholesky::factor_with_pattern(n, &pairs, &values, &mut work.pattern).ok();
+    work.pairs = pairs;
+    work.values = values;
     result
 }

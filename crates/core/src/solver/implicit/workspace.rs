@@ -100,7 +100,10 @@ pub(super) struct Workspace<const D: usize> {
     pub order: Vec<u32>,
     pub block: Vec<f64>,
     /// Matrix entries of the preconditioner's assembly (reused).
-    pub triplets: Vec<faer::sparse::Triplet<usize, usize, f64>>,
+    pub pairs: Vec<faer::sparse::Pair<usize, usize>>,
+    pub values: Vec<f64>,
+    /// The last factored pattern, its value order and symbolic factorisation.
+    pub pattern: crate::linear_solvers::sparse_cholesky::PatternCache,
     /// Per component: 1 for a free unknown, 0 for a fixed one (wall, obstacle, ghost, no
     /// material).
     pub mask: Vec<f64>,
