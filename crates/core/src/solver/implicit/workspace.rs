@@ -146,6 +146,8 @@ pub(super) struct Workspace<const D: usize> {
     pub applied_n: Vec<f64>,
     /// Particle support Σ_p w V of each unknown's node, in cell volumes (weak-node ties).
     pub support: Vec<f64>,
+    /// The weak-node ties of the step being prepared (reused).
+    pub ties: Vec<Mirror>,
     /// Free strain before and after the physics advanced (for ramping within cut steps).
     pub free_strain_old: Vec<f64>,
     pub free_strain_new: Vec<f64>,
@@ -276,10 +278,14 @@ impl<const D: usize> Workspace<D> {
                 support[self.entry_dof[e] as usize] += self.interp.weight[e] * v / cell;
             }
         }
-        let mut is_ghost = vec![false; nodes];
+        // The wall ghosts so far (`prepare` marks the ties too afterwards).
+        let is_ghost = &mut self.ghost;
+        is_ghost.clear();
+        is_ghost.resize(nodes, false);
         for m in &self.mirrors {
             is_ghost[m.ghost as usize] = true;
         }
+        let (is_ghost, support, dof_of_node) = (&*is_ghost, &*support, &self.dof_of_node);
         // The well-supported unknown `steps` nodes from `ijk` along `offset`, if any.
         let strong = |ijk: [usize; 3], offset: [i64; 3], steps: i64| -> Option<u32> {
             let mut n = ijk;
@@ -290,11 +296,12 @@ impl<const D: usize> Workspace<D> {
                 }
                 n[d] = c as usize;
             }
-            let j = self.dof_of_node[grid.index(n)];
+            let j = dof_of_node[grid.index(n)];
             (j != INACTIVE && !is_ghost[j as usize] && support[j as usize] >= WEAK_SUPPORT)
                 .then_some(j)
         };
-        let mut ties = Vec::new();
+        let ties = &mut self.ties;
+        ties.clear();
         for k in 0..nodes {
             if is_ghost[k] || support[k] >= WEAK_SUPPORT {
                 continue;
@@ -338,7 +345,7 @@ impl<const D: usize> Workspace<D> {
         // Ties go first: a tied node may itself be the image of a wall's ghost, so it must
         // take its value before the ghost copies it (and its ghost's force folds onto it
         // before it folds onward).
-        self.mirrors.splice(0..0, ties);
+        self.mirrors.splice(0..0, ties.drain(..));
     }
 
     /// Gravity on the nodes, `g·scale` (the load ramp), before folding.
