@@ -328,28 +328,14 @@ impl Db {
     pub async fn cancel_queued(&self, id: &str) -> Result<bool, sqlx::Error> {
         let text = "UPDATE jobs SET status = 'cancelled', finished_at = {now} \
                     WHERE id = ?1 AND status = 'queued'";
-        Ok(on_backend!(self, pool, sql = text, {
-            sqlx::query(&sql)
-                .bind(id)
-                .execute(pool)
-                .await?
-                .rows_affected()
-                == 1
-        }))
+        Ok(self.execute_with(text, id).await? == 1)
     }
 
     /// Marks a running job's cancellation as requested; its worker sees it at its next
     /// heartbeat (and survives a restart).
     pub async fn request_cancel(&self, id: &str) -> Result<bool, sqlx::Error> {
         let text = "UPDATE jobs SET cancel_requested = 1 WHERE id = ?1 AND status = 'running'";
-        Ok(on_backend!(self, pool, sql = text, {
-            sqlx::query(&sql)
-                .bind(id)
-                .execute(pool)
-                .await?
-                .rows_affected()
-                == 1
-        }))
+        Ok(self.execute_with(text, id).await? == 1)
     }
 
     /// Requeues running jobs whose lease has run out (their worker died or lost the
@@ -384,13 +370,7 @@ impl Db {
     /// requeued as if their lease had run out.
     pub async fn release(&self, worker: &str) -> Result<Vec<Requeued>, sqlx::Error> {
         let text = "UPDATE jobs SET lease_until = 0 WHERE worker = ?1 AND status = 'running'";
-        on_backend!(self, pool, sql = text, {
-            sqlx::query(&sql)
-                .bind(worker)
-                .execute(pool)
-                .await?
-                .rows_affected()
-        });
+        self.execute_with(text, worker).await?;
         self.requeue_expired().await
     }
 

@@ -135,6 +135,19 @@ macro_rules! on_backend {
 }
 pub(crate) use on_backend;
 
+impl Db {
+    /// Runs a statement whose one parameter (`?1`) is `arg`; returns the rows it changed.
+    pub(crate) async fn execute_with(&self, text: &str, arg: &str) -> Result<u64, sqlx::Error> {
+        Ok(on_backend!(self, pool, sql = text, {
+            sqlx::query(&sql)
+                .bind(arg)
+                .execute(pool)
+                .await?
+                .rows_affected()
+        }))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,25 +23,14 @@ impl Db {
     pub async fn worker_seen(&self, worker: &str) -> Result<(), sqlx::Error> {
         let text = "INSERT INTO workers (name, last_seen) VALUES (?1, {epoch}) \
                     ON CONFLICT (name) DO UPDATE SET last_seen = excluded.last_seen";
-        on_backend!(self, pool, sql = text, {
-            sqlx::query(&sql)
-                .bind(worker)
-                .execute(pool)
-                .await?
-                .rows_affected()
-        });
+        self.execute_with(text, worker).await?;
         Ok(())
     }
 
     /// Forgets a worker that stopped cleanly (a dead one keeps its last heartbeat).
     pub async fn worker_gone(&self, worker: &str) -> Result<(), sqlx::Error> {
-        on_backend!(self, pool, sql = "DELETE FROM workers WHERE name = ?1", {
-            sqlx::query(&sql)
-                .bind(worker)
-                .execute(pool)
-                .await?
-                .rows_affected()
-        });
+        self.execute_with("DELETE FROM workers WHERE name = ?1", worker)
+            .await?;
         Ok(())
     }
 
