@@ -75,6 +75,23 @@ pub struct StressBatch<'a, const D: usize> {
     pub plastic_work: &'a mut [f64],
 }
 
+/// What a law sees to differentiate its stress: the implicit mode's tangent, for laws that
+/// give it analytically ([`ConstitutiveLaw::has_stress_derivative`]).
+pub struct TangentBatch<'a, const D: usize> {
+    /// Time step of the update, seconds.
+    pub dt: f64,
+    /// Deformation gradient the derivative is taken at (the law's last update's).
+    pub deformation_gradient: &'a [Matrix<D>],
+    /// The change of the deformation gradient to differentiate along, per particle.
+    pub direction: &'a [Matrix<D>],
+    /// Cauchy stress at `deformation_gradient`.
+    pub stress: &'a [Matrix<D>],
+    /// The shared fields the law reads, as in [`StressBatch::shared`].
+    pub shared: [&'a [f64]; MAX_SHARED_READS],
+    /// Where the law writes dσ = ∂σ/∂F : direction, per particle.
+    pub stress_change: &'a mut [Matrix<D>],
+}
+
 /// What a batch update reports back for diagnostics and the time step.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BatchStats {
@@ -114,6 +131,18 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     /// Computes the Cauchy stress of every particle in the batch and reports the batch's
     /// strain energy and largest wave speed.
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats;
+    /// Whether the law implements [`ConstitutiveLaw::stress_derivative`]. Without it (the
+    /// default) the implicit mode differences `update_stress` instead, which every law
+    /// supports; an analytic derivative is exact and skips the state restore and update.
+    fn has_stress_derivative(&self) -> bool {
+        false
+    }
+    /// The directional derivative of the stress, dσ = ∂σ/∂F : δF, of every particle in
+    /// the batch at its deformation gradient (stateless laws; a law with state keeps the
+    /// default). Called only when [`ConstitutiveLaw::has_stress_derivative`] says so.
+    fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
+        let _ = batch;
+    }
 }
 
 /// Object-safe form of [`ConstitutiveLaw`]; implemented for every law, used by the solver.
@@ -130,6 +159,12 @@ pub trait Material: Send + Sync {
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats;
     /// 3D batch update.
     fn update_stress_3d(&self, batch: StressBatch<'_, 3>) -> BatchStats;
+    /// See [`ConstitutiveLaw::has_stress_derivative`].
+    fn has_stress_derivative(&self) -> bool;
+    /// 2D [`ConstitutiveLaw::stress_derivative`].
+    fn stress_derivative_2d(&self, batch: TangentBatch<'_, 2>);
+    /// 3D [`ConstitutiveLaw::stress_derivative`].
+    fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>);
 }
 
 impl<T: ConstitutiveLaw> Material for T {
@@ -150,6 +185,15 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn update_stress_3d(&self, batch: StressBatch<'_, 3>) -> BatchStats {
         self.update_stress::<3>(batch)
+    }
+    fn has_stress_derivative(&self) -> bool {
+        ConstitutiveLaw::has_stress_derivative(self)
+    }
+    fn stress_derivative_2d(&self, batch: TangentBatch<'_, 2>) {
+        self.stress_derivative::<2>(batch)
+    }
+    fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>) {
+        self.stress_derivative::<3>(batch)
     }
 }
 

@@ -2,7 +2,7 @@
 //! problems with small displacements, wrong under large rotations.
 
 use crate::ElasticParameters;
-use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, lame_parameters};
+use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, TangentBatch, lame_parameters};
 use mpm_core::math::{Matrix, trace};
 
 /// σ = λ tr(ε) I + 2 μ ε.
@@ -43,6 +43,19 @@ impl ConstitutiveLaw for LinearElastic {
         BatchStats {
             strain_energy: energy,
             max_wave_speed: self.params.wave_speed(),
+        }
+    }
+
+    fn has_stress_derivative(&self) -> bool {
+        true
+    }
+
+    /// dσ = λ tr(dε) I + 2μ dε with dε = sym(δF): the law is linear in F.
+    fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
+        let identity = Matrix::<D>::identity();
+        for (df, out) in batch.direction.iter().zip(batch.stress_change.iter_mut()) {
+            let strain = (df + df.transpose()) * 0.5;
+            *out = identity * (self.lambda * trace(&strain)) + strain * (2.0 * self.mu);
         }
     }
 }

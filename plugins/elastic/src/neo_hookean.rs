@@ -2,8 +2,8 @@
 //! ψ = μ/2 (tr(FᵀF) − d) − μ ln J + λ/2 (ln J)², σ = μ/J (F Fᵀ − I) + λ ln J / J · I.
 
 use crate::ElasticParameters;
-use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, lame_parameters};
-use mpm_core::math::{Matrix, determinant};
+use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, TangentBatch, lame_parameters};
+use mpm_core::math::{Matrix, cofactor, determinant};
 
 /// Compressible neo-Hookean solid (plane strain in 2D).
 #[derive(Clone, Debug)]
@@ -57,6 +57,28 @@ impl ConstitutiveLaw for NeoHookean {
         BatchStats {
             strain_energy: energy,
             max_wave_speed: (modulus / self.params.density).sqrt(),
+        }
+    }
+
+    fn has_stress_derivative(&self) -> bool {
+        true
+    }
+
+    /// dσ = −t σ + μ/J (δF Fᵀ + F δFᵀ) + λ t / J · I with t = tr(F⁻¹ δF) = dJ / J.
+    fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
+        let identity = Matrix::<D>::identity();
+        let (lambda, mu) = (self.lambda, self.mu);
+        for (((f, df), stress), out) in batch
+            .deformation_gradient
+            .iter()
+            .zip(batch.direction)
+            .zip(batch.stress)
+            .zip(batch.stress_change.iter_mut())
+        {
+            let j = determinant(f);
+            let t = cofactor(f).component_mul(df).sum() / j;
+            let db = df * f.transpose() + f * df.transpose();
+            *out = stress * (-t) + db * (mu / j) + identity * (lambda * t / j);
         }
     }
 }

@@ -81,3 +81,46 @@ fn uniaxial_stretch_matches_closed_form() {
     let want = mu / stretch * (stretch * stretch - 1.0) + lambda * stretch.ln() / stretch;
     assert!((nh[(0, 0)] - want).abs() < 1e-9 * want.abs());
 }
+
+/// The analytic stress derivative of `law` at `f` along `df`, against a central difference
+/// of its own stress update.
+fn derivative_error<L: ConstitutiveLaw, const D: usize>(
+    law: &L,
+    f: Matrix<D>,
+    df: Matrix<D>,
+) -> f64 {
+    use mpm_core::material::TangentBatch;
+    assert!(law.has_stress_derivative());
+    let (stress, _) = stress_of(law, f);
+    let mut analytic = [Matrix::<D>::zeros()];
+    law.stress_derivative(TangentBatch {
+        dt: 0.0,
+        deformation_gradient: &[f],
+        direction: &[df],
+        stress: &[stress],
+        shared: [&[]; 4],
+        stress_change: &mut analytic,
+    });
+    let h = 1e-6;
+    let (plus, _) = stress_of(law, f + df * h);
+    let (minus, _) = stress_of(law, f - df * h);
+    let numeric = (plus - minus) / (2.0 * h);
+    (analytic[0] - numeric).norm() / numeric.norm()
+}
+
+#[test]
+fn analytic_stress_derivatives_match_differences_of_the_update() {
+    // A finite stretch with shear and rotation, and a direction that changes every entry.
+    let f3 = Matrix::<3>::new(1.2, 0.1, -0.05, 0.02, 0.9, 0.1, 0.03, -0.04, 1.05);
+    let d3 = Matrix::<3>::new(0.3, -0.2, 0.1, 0.05, 0.4, -0.1, 0.2, 0.1, -0.3);
+    let f2 = Matrix::<2>::new(1.1, 0.2, -0.1, 0.95);
+    let d2 = Matrix::<2>::new(-0.2, 0.3, 0.1, 0.4);
+    for error in [
+        derivative_error(&NeoHookean::new(params()), f3, d3),
+        derivative_error(&NeoHookean::new(params()), f2, d2),
+        derivative_error(&LinearElastic::new(params()), f3, d3),
+        derivative_error(&LinearElastic::new(params()), f2, d2),
+    ] {
+        assert!(error < 1e-7, "relative error {error}");
+    }
+}

@@ -27,7 +27,7 @@ pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{Output, StopCriteria};
 pub use solver_settings::{
     AntiLocking, ImplicitForm, ImplicitSettings, KernelName, KrylovMethod, Mechanics, Scheme,
-    Solver, Transfer,
+    Solver, TangentMethod, Transfer,
 };
 pub use validate::{
     CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value, parse_scene_value_limited,

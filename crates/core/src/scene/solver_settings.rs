@@ -148,6 +148,18 @@ pub enum KrylovMethod {
     Gmres,
 }
 
+/// How the implicit mode's tangent differentiates the stress.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum TangentMethod {
+    /// The laws' analytic stress derivative where every material of the scene has one
+    /// (the elastic laws), else finite differences.
+    #[default]
+    Auto,
+    /// Directional finite differences of each law's own stress update (any law).
+    FiniteDifference,
+}
+
 /// Settings of `solver.mechanics.implicit`; every field has a default.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -175,6 +187,10 @@ pub struct ImplicitSettings {
     /// Linear solver of each Newton iteration.
     #[serde(default)]
     pub krylov: KrylovMethod,
+    /// The stress derivative of the tangent: analytic where the laws have it, or finite
+    /// differences.
+    #[serde(default)]
+    pub tangent: TangentMethod,
     /// Relative residual the linear solve reaches (inexact Newton).
     #[serde(default = "default_krylov_tolerance")]
     pub krylov_tolerance: f64,
@@ -200,6 +216,7 @@ impl Default for ImplicitSettings {
             force_tolerance: default_force_tolerance(),
             energy_tolerance: default_energy_tolerance(),
             krylov: KrylovMethod::Auto,
+            tangent: TangentMethod::Auto,
             krylov_tolerance: default_krylov_tolerance(),
             max_krylov_iterations: default_krylov_iterations(),
             max_cuts: default_max_cuts(),

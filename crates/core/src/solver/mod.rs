@@ -32,12 +32,13 @@ mod setup;
 mod simulation;
 mod stats;
 pub mod stencil;
+mod stress_derivative;
 mod stress_update;
 mod timestep;
 mod volume_averaging;
 
 use crate::kernels::{CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp};
-use crate::material::{BatchStats, Material, StressBatch};
+use crate::material::{BatchStats, Material, StressBatch, TangentBatch};
 use crate::output::{Metrics, OutputError, OutputSink};
 use crate::physics::{Physics, PhysicsContext, Stage};
 use crate::reference::{Frame as ReferenceFrame, Reference};
@@ -53,6 +54,8 @@ pub use timestep::stable_time_step;
 pub trait DimensionDispatch<const D: usize> {
     /// Updates one batch.
     fn update(&self, batch: StressBatch<'_, D>) -> BatchStats;
+    /// The stress derivative of one batch (laws that have one).
+    fn derivative(&self, batch: TangentBatch<'_, D>);
     /// Runs one stage of a physics operator.
     fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, D>);
     /// A physics operator's stable step.
@@ -64,6 +67,9 @@ pub trait DimensionDispatch<const D: usize> {
 impl DimensionDispatch<2> for dyn Material {
     fn update(&self, batch: StressBatch<'_, 2>) -> BatchStats {
         self.update_stress_2d(batch)
+    }
+    fn derivative(&self, batch: TangentBatch<'_, 2>) {
+        self.stress_derivative_2d(batch)
     }
     fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, 2>) {
         physics.stage_2d(stage, ctx)
@@ -79,6 +85,9 @@ impl DimensionDispatch<2> for dyn Material {
 impl DimensionDispatch<3> for dyn Material {
     fn update(&self, batch: StressBatch<'_, 3>) -> BatchStats {
         self.update_stress_3d(batch)
+    }
+    fn derivative(&self, batch: TangentBatch<'_, 3>) {
+        self.stress_derivative_3d(batch)
     }
     fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, 3>) {
         physics.stage_3d(stage, ctx)

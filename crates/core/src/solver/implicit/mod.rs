@@ -27,7 +27,7 @@ use super::simulation::Simulation;
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::physics::{FREE_STRAIN, PhysicsFault};
-use crate::scene::{ImplicitForm, ImplicitSettings, KrylovMethod};
+use crate::scene::{ImplicitForm, ImplicitSettings, KrylovMethod, TangentMethod};
 use newton::{NewtonResult, NewtonVectors};
 use residual::{Inertia, internal_force_now};
 use workspace::Workspace;
@@ -178,6 +178,8 @@ impl<const D: usize> Implicit<D> {
         sim.grid_update_work(dt, false);
         let work = &mut self.work;
         work.prepare(sim, dynamic);
+        work.analytic = s.tangent == TangentMethod::Auto
+            && super::stress_derivative::all_analytic(&sim.particles);
         let ramp = s.gravity_ramp.map_or(1.0, |r| (end / r).min(1.0));
         work.gravity(sim, ramp);
         let held = work.constrain(sim, end, dt);

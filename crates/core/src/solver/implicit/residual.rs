@@ -10,6 +10,7 @@
 use super::super::DimensionDispatch;
 use super::super::parallel::{SharedSlice, chunk_count, chunk_range};
 use super::super::simulation::Simulation;
+use super::super::stress_derivative::stress_derivative;
 use super::super::stress_update::{StressStats, update_stress};
 use super::workspace::{INACTIVE, Mirror, NormalConstraint, Workspace};
 use crate::kernels::Kernel;
@@ -262,6 +263,9 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
     std::mem::swap(&mut work.full, &mut work.full_v);
     mirror(work, v);
     std::mem::swap(&mut work.full, &mut work.full_v);
+    if work.analytic {
+        return tangent_product_analytic(sim, work, v, dt, inertia, out);
+    }
     let n = sim.particles.len();
     let identity = Matrix::<D>::identity();
     let rate = !sim.particles.velocity_gradient.is_empty();
@@ -319,6 +323,16 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
     work.step_of = step_of;
     work.grad_du = grad_du;
     work.stress_cur = stress_cur;
+    finish_product(work, v, inertia, out);
+}
+
+/// The common end of a tangent product: fold the ghosts, add the Newmark mass term, project.
+fn finish_product<const D: usize>(
+    work: &Workspace<D>,
+    v: &[f64],
+    inertia: Option<Inertia>,
+    out: &mut [f64],
+) {
     fold::<D>(&work.mirrors, out);
     if let Some(c) = inertia {
         for k in 0..work.node_of_dof.len() {
@@ -331,6 +345,60 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
         }
     }
     project(work, out);
+}
+
+/// [`tangent_product`] with the laws' analytic stress derivative: δF = ∇v Fₙ per particle,
+/// dσ from the laws at the iterate, no stress update. The direction is mirrored in
+/// `work.full_v`.
+fn tangent_product_analytic<const D: usize, K: Kernel>(
+    sim: &mut Simulation<D, K>,
+    work: &mut Workspace<D>,
+    v: &[f64],
+    dt: f64,
+    inertia: Option<Inertia>,
+    out: &mut [f64],
+) where
+    dyn Material: DimensionDispatch<D>,
+{
+    let n = sim.particles.len();
+    work.grad_v.resize(n, Matrix::<D>::zeros());
+    work.direction.resize(n, Matrix::<D>::zeros());
+    work.stress_change.resize(n, Matrix::<D>::zeros());
+    {
+        let (interp, entry_dof, full_v, f_n) =
+            (&work.interp, &work.entry_dof, &work.full_v, &work.f_n);
+        work.grad_v
+            .par_iter_mut()
+            .zip(work.direction.par_iter_mut())
+            .enumerate()
+            .for_each(|(p, (g, direction))| {
+                *g = nodal_gradient(interp, entry_dof, full_v, p);
+                *direction = *g * f_n[p];
+            });
+    }
+    stress_derivative(
+        &sim.particles,
+        &work.direction,
+        dt,
+        &mut work.derivative_scratch,
+        &mut work.stress_change,
+    );
+    let identity = Matrix::<D>::identity();
+    let (grad_v, stress_change, grad_du, stress_cur) = (
+        std::mem::take(&mut work.grad_v),
+        std::mem::take(&mut work.stress_change),
+        std::mem::take(&mut work.grad_du),
+        std::mem::take(&mut work.stress_cur),
+    );
+    scatter_with(work, n, out, |p| {
+        let a = identity + grad_du[p];
+        stress_change[p] * cofactor(&a) + stress_cur[p] * cofactor_derivative(&a, &grad_v[p])
+    });
+    work.grad_v = grad_v;
+    work.stress_change = stress_change;
+    work.grad_du = grad_du;
+    work.stress_cur = stress_cur;
+    finish_product(work, v, inertia, out);
 }
 
 /// The internal force of the particles' current stress with no increment (∇Δu = 0),

@@ -151,6 +151,13 @@ pub(super) struct Workspace<const D: usize> {
     /// Free strain before and after the physics advanced (for ramping within cut steps).
     pub free_strain_old: Vec<f64>,
     pub free_strain_new: Vec<f64>,
+    /// Whether the tangent uses the laws' analytic stress derivative (every law has one
+    /// and the scene does not ask for finite differences).
+    pub analytic: bool,
+    /// δF = ∇v Fₙ and dσ per particle, and the free-strain scratch (analytic tangent).
+    pub direction: Vec<Matrix<D>>,
+    pub stress_change: Vec<Matrix<D>>,
+    pub derivative_scratch: crate::solver::stress_derivative::DerivativeScratch<D>,
 }
 
 impl<const D: usize> Workspace<D> {

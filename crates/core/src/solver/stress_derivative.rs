@@ -1,0 +1,92 @@
+//! The analytic stress derivative of the implicit mode's tangent: every material group's
+//! law differentiates its particles' stress along a change of F, one batch per call, batches
+//! in parallel (as `stress_update.rs` updates them). With a free strain the laws see the
+//! mechanical part of F and of its change.
+
+use super::parallel::SharedSlice;
+use crate::material::{MAX_SHARED_READS, TangentBatch};
+use crate::math::Matrix;
+use crate::particles::Particles;
+use crate::physics::FREE_STRAIN;
+use crate::solver::DimensionDispatch;
+use rayon::prelude::*;
+
+/// Particles per material call.
+const BATCH: usize = 1024;
+
+/// Whether every material of the particles gives its stress derivative analytically.
+pub(crate) fn all_analytic<const D: usize>(particles: &Particles<D>) -> bool {
+    particles
+        .groups
+        .iter()
+        .all(|g| g.material.has_stress_derivative())
+}
+
+/// Scratch of the derivative with a free strain: the mechanical F and direction.
+#[derive(Default)]
+pub(crate) struct DerivativeScratch<const D: usize> {
+    mechanical: Vec<Matrix<D>>,
+    direction: Vec<Matrix<D>>,
+}
+
+/// Writes dσ_p = ∂σ/∂F : `direction[p]` at the particles' current F and stress into `out`.
+/// Only for particles whose laws all have the derivative ([`all_analytic`]).
+pub(crate) fn stress_derivative<const D: usize>(
+    particles: &Particles<D>,
+    direction: &[Matrix<D>],
+    dt: f64,
+    scratch: &mut DerivativeScratch<D>,
+    out: &mut [Matrix<D>],
+) where
+    dyn crate::material::Material: DimensionDispatch<D>,
+{
+    let n = particles.len();
+    let (kinematic, direction): (&[Matrix<D>], &[Matrix<D>]) =
+        match particles.shared.get(FREE_STRAIN) {
+            Some(fs) => {
+                scratch.mechanical.resize(n, Matrix::<D>::zeros());
+                scratch.direction.resize(n, Matrix::<D>::zeros());
+                scratch
+                    .mechanical
+                    .par_iter_mut()
+                    .zip(scratch.direction.par_iter_mut())
+                    .enumerate()
+                    .for_each(|(p, (fm, dm))| {
+                        let scale = 1.0 / (1.0 + fs[p]);
+                        *fm = particles.deformation_gradient[p] * scale;
+                        *dm = direction[p] * scale;
+                    });
+                (&scratch.mechanical, &scratch.direction)
+            }
+            None => (&particles.deformation_gradient, direction),
+        };
+    let out_slice = SharedSlice::new(out);
+    for group in &particles.groups {
+        let range = group.range.clone();
+        let material = group.material.clone();
+        let reads: [Option<&[f64]>; MAX_SHARED_READS] = std::array::from_fn(|k| {
+            material
+                .shared_reads()
+                .get(k)
+                .and_then(|r| particles.shared.get(r.name))
+        });
+        (0..range.len().div_ceil(BATCH))
+            .into_par_iter()
+            .for_each(|b| {
+                let start = range.start + b * BATCH;
+                let global = start..(start + BATCH).min(range.end);
+                let batch = TangentBatch {
+                    dt,
+                    deformation_gradient: &kinematic[global.clone()],
+                    direction: &direction[global.clone()],
+                    stress: &particles.stress[global.clone()],
+                    shared: std::array::from_fn(|k| {
+                        reads[k].map_or(&[][..], |f| &f[global.clone()])
+                    }),
+                    // SAFETY: batches are disjoint particle ranges.
+                    stress_change: unsafe { out_slice.range(global.clone()) },
+                };
+                material.as_ref().derivative(batch);
+            });
+    }
+}
