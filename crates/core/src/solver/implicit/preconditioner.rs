@@ -18,8 +18,10 @@ use crate::linear_solvers::sparse_cholesky::SparseCholesky;
 use crate::material::Material;
 use faer::sparse::Pair;
 
-/// Most matrix entries (before summing duplicates) the assembly may make (~24 bytes each).
-const MAX_TRIPLETS: usize = 20_000_000;
+/// Most matrix entries (before summing duplicates) the assembly may make: about 48 bytes
+/// each with the pattern cache, so up to ~5 GB (a 3D strip of 138,240 particles makes 57
+/// million); a larger system falls back to Jacobi.
+const MAX_TRIPLETS: usize = 100_000_000;
 
 /// The unknowns a component maps to (following ghost mirrors and weak-node ties) with their
 /// factors: none when it is fixed, two for a node extrapolated from two neighbours.
