@@ -2,8 +2,10 @@
 //! (explicit or implicit), G2P of the temperature change, and the thermal free strain.
 
 use crate::boundary::Face;
+use crate::factored::Factored;
+use crate::parameters::HeatPreconditioner;
 use crate::parameters::{Integrator, ThermalParameters};
-use mpm_core::linear_solvers::conjugate_gradient::{Work, solve};
+use mpm_core::linear_solvers::conjugate_gradient::{Work, solve, solve_preconditioned};
 use mpm_core::math::{Matrix, Vector, determinant};
 use mpm_core::physics::{
     FREE_STRAIN, HEAT_RELEASE, Interpolation, PLASTIC_WORK, PhysicsContext, PhysicsFault,
@@ -24,6 +26,7 @@ pub struct Thermal {
     domain_max: Vec<f64>,
     expansion: bool,
     plastic_heating: bool,
+    factored: Factored,
 }
 
 impl Thermal {
@@ -40,6 +43,7 @@ impl Thermal {
             domain_max: scene.domain.max.clone(),
             expansion,
             plastic_heating,
+            factored: Factored::default(),
         }
     }
 
@@ -255,15 +259,35 @@ impl Thermal {
                         y[i] = cap[i] * x[i] + dt * (y[i] + convection[i] * x[i]);
                     }
                 };
-                let result = solve(
-                    apply,
-                    kdiag,
-                    source,
-                    t_new,
-                    Work { r, z, p: p_dir, ap },
-                    self.params.tolerance,
-                    self.params.max_iterations,
-                );
+                let mut state = (self.params.preconditioner == HeatPreconditioner::Auto)
+                    .then(|| self.factored.state.lock().ok())
+                    .flatten();
+                let factor = state.as_mut().and_then(|st| {
+                    st.factor(
+                        it,
+                        pv.volume0.len(),
+                        |p| conductivity[p] * volume(p),
+                        cap,
+                        convection,
+                        kdiag,
+                        dt,
+                    )
+                });
+                let work = Work { r, z, p: p_dir, ap };
+                let (tol, max) = (self.params.tolerance, self.params.max_iterations);
+                let result = match (factor, state.as_mut()) {
+                    (Some(factor), Some(st)) => solve_preconditioned(
+                        apply,
+                        |r: &[f64], z: &mut [f64]| st.precondition(&factor, r, z),
+                        kdiag,
+                        source,
+                        t_new,
+                        work,
+                        tol,
+                        max,
+                    ),
+                    _ => solve(apply, kdiag, source, t_new, work, tol, max),
+                };
                 report.record_max("thermal.solver_iterations", result.iterations as f64);
                 if !result.converged {
                     report.fail(PhysicsFault {

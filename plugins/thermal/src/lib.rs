@@ -5,18 +5,20 @@
 //! go to the nodes (P2G), the conductance comes from the shape-function gradients, and the
 //! nodal temperature change comes back to the particles (G2P). Two integrators: explicit
 //! (its stable step enters the run's step choice) and implicit backward Euler solved with
-//! matrix-free preconditioned conjugate gradients, stable at any step.
+//! matrix-free conjugate gradients preconditioned by a sparse Cholesky of the step's
+//! matrix (`factored.rs`), stable at any step.
 //!
 //! Scene section: `physics.thermal` ([`ThermalParameters`]).
 
 mod boundary;
 mod conduction;
+mod factored;
 mod parameters;
 mod reference;
 
 pub use boundary::{Convection, ThermalBoundary};
 pub use conduction::Thermal;
-pub use parameters::{Integrator, ThermalMaterial, ThermalParameters};
+pub use parameters::{HeatPreconditioner, Integrator, ThermalMaterial, ThermalParameters};
 pub use reference::{semi_infinite_temperature, slab_temperature};
 
 use mpm_core::physics::{Physics, PhysicsFactory, TypedPhysicsFactory};

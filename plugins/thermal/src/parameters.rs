@@ -26,6 +26,21 @@ pub struct ThermalParameters {
     /// Implicit solve: most iterations; more stops the run with a diagnostic.
     #[serde(default = "default_max_iterations")]
     pub max_iterations: u32,
+    /// Implicit solve: preconditioner of the conjugate gradients.
+    #[serde(default)]
+    pub preconditioner: HeatPreconditioner,
+}
+
+/// The preconditioner of the implicit heat solve.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum HeatPreconditioner {
+    /// A sparse Cholesky of the step's matrix (one or two iterations) where its assembly
+    /// has at most 2·10⁷ entries, else Jacobi.
+    #[default]
+    Auto,
+    /// The diagonal (no factorisation; iterations grow with the grid).
+    Jacobi,
 }
 
 fn default_tolerance() -> f64 {
