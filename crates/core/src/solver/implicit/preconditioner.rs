@@ -113,6 +113,8 @@ where
     let mut block = std::mem::take(&mut work.block);
     block.clear();
     block.resize(stencil * stencil * D * D, 0.0);
+    // The unknowns each stencil entry's components map to, per block.
+    let mut mapped = std::mem::take(&mut work.mapped);
     let mut run_start = 0;
     while run_start < order.len() {
         let first = work.interp.node[order[run_start] as usize * stencil];
@@ -145,16 +147,19 @@ where
             run_end += 1;
         }
         let base = order[run_start] as usize * stencil;
+        mapped.clear();
         for a in 0..stencil {
-            let dof_a = work.entry_dof[base + a] as usize;
+            let dof = work.entry_dof[base + a] as usize;
+            mapped.extend((0..D).map(|i| targets(work, dof, i)));
+        }
+        for a in 0..stencil {
             for b in 0..stencil {
-                let dof_b = work.entry_dof[base + b] as usize;
                 for i in 0..D {
-                    let rows = targets(work, dof_a, i);
+                    let rows = mapped[a * D + i];
                     for j in 0..D {
                         let k = block[((a * stencil + b) * D + i) * D + j];
                         for &(row, si) in &rows {
-                            for (col, sj) in targets(work, dof_b, j) {
+                            for &(col, sj) in &mapped[b * D + j] {
                                 if si != 0.0 && sj != 0.0 && col <= row {
                                     pairs.push(Pair::new(row, col));
                                     values.push(k * si * sj);
@@ -169,6 +174,7 @@ where
     }
     work.order = order;
     work.block = block;
+    work.mapped = mapped;
     for i in 0..n {
         let inv = work.inverse_diagonal[i];
         if inv > 0.0 {

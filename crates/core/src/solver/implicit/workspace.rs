@@ -99,6 +99,8 @@ pub(super) struct Workspace<const D: usize> {
     /// (the preconditioner's assembly).
     pub order: Vec<u32>,
     pub block: Vec<f64>,
+    /// The unknowns and factors of each stencil entry's components in one block (reused).
+    pub mapped: Vec<[(usize, f64); 2]>,
     /// Matrix entries of the preconditioner's assembly (reused).
     pub pairs: Vec<faer::sparse::Pair<usize, usize>>,
     pub values: Vec<f64>,
