@@ -267,9 +267,19 @@ impl<const D: usize> Cohesive<D> {
     }
 }
 
-/// The impulse on the first field of a bonded node (the second gets its opposite), from
-/// the fields' masses `m`, velocities `v` and the unit normal `n` pointing from the first
-/// field to the second, over a step `dt`; `None` when the node is debonded (contact acts).
+/// What a bonded node does to its two fields in one step.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Bond<const D: usize> {
+    /// The impulse on the first field (the second gets its opposite), N·s.
+    pub(crate) impulse: Vector<D>,
+    /// Whether the bond holds (the fields take their common velocity, the opening does
+    /// not change); otherwise a traction reached its cap and the fields separate.
+    pub(crate) holds: bool,
+}
+
+/// The impulse of a bonded node, from the fields' masses `m`, velocities `v` and the unit
+/// normal `n` pointing from the first field to the second, over a step `dt`; `None` when
+/// the node is debonded (contact acts).
 #[inline]
 pub(crate) fn bond_impulse<const D: usize>(
     node: &CohesiveNode<D>,
@@ -278,7 +288,7 @@ pub(crate) fn bond_impulse<const D: usize>(
     v: [Vector<D>; 2],
     n: &Vector<D>,
     dt: f64,
-) -> Option<Vector<D>> {
+) -> Option<Bond<D>> {
     if node.role != NodeRole::Bonded || node.damage >= 1.0 {
         return None;
     }
@@ -289,29 +299,44 @@ pub(crate) fn bond_impulse<const D: usize>(
     let normal = stick.dot(n) / scale;
     let tangential = (stick - n * stick.dot(n)) / scale;
     let intact = 1.0 - node.damage;
-    let normal = normal.min(law.normal_strength * intact);
-    let cap = law.shear_strength * intact + law.friction * (-normal).max(0.0);
+    let normal_cap = law.normal_strength * intact;
+    let shear_cap = law.shear_strength * intact + law.friction * (-normal).max(0.0);
     let slip = tangential.norm();
-    let tangential = if slip > cap {
-        tangential * (cap / slip)
+    if normal <= normal_cap && slip <= shear_cap {
+        return Some(Bond {
+            impulse: stick,
+            holds: true,
+        });
+    }
+    let normal = normal.min(normal_cap);
+    let shear_cap = law.shear_strength * intact + law.friction * (-normal).max(0.0);
+    let tangential = if slip > shear_cap {
+        tangential * (shear_cap / slip)
     } else {
         tangential
     };
-    Some((n * normal + tangential) * scale)
+    Some(Bond {
+        impulse: (n * normal + tangential) * scale,
+        holds: false,
+    })
 }
 
 /// Advances a bonded node by one step after its fields took the velocities `v` (walls and
-/// obstacles applied) under the impulse `impulse` on the first field: the opening, the
-/// damage and the energy dissipated.
+/// obstacles applied) under `bond`: the opening, the damage and the energy dissipated.
+/// A bond that holds changes nothing (its fields share one velocity, up to rounding).
 #[inline]
 pub(crate) fn advance<const D: usize>(
     node: &mut CohesiveNode<D>,
     law: &CohesiveLaw,
     v: [Vector<D>; 2],
-    impulse: &Vector<D>,
+    bond: &Bond<D>,
     n: &Vector<D>,
     dt: f64,
 ) -> NodeChange {
+    if bond.holds {
+        return NodeChange::default();
+    }
+    let impulse = &bond.impulse;
     let step = (v[1] - v[0]) * dt;
     node.opening += step;
     let mut change = NodeChange {
@@ -402,8 +427,9 @@ mod tests {
         let v = [Vector::<2>::zeros(), Vector::<2>::new(0.1, 0.2)];
         // Stick impulse 0.5·(0.1, 0.2) = (0.05, 0.1): tractions 5e5 and 1e6 Pa over
         // 0.01 m² · 1e-5 s, below the strengths.
-        let j = bond_impulse(&bonded(), &law(), [1.0, 1.0], v, &n, 1e-5).unwrap();
-        assert!((j - Vector::<2>::new(0.05, 0.1)).norm() < 1e-15);
+        let bond = bond_impulse(&bonded(), &law(), [1.0, 1.0], v, &n, 1e-5).unwrap();
+        assert!(bond.holds);
+        assert!((bond.impulse - Vector::<2>::new(0.05, 0.1)).norm() < 1e-15);
     }
 
     #[test]
@@ -412,9 +438,10 @@ mod tests {
         // Stick impulse 0.5·(10, −20): 1e8 Pa of compression, 5e7 Pa of shear needed
         // against a cap of 2e6 + 0.5 · 1e8 = 5.2e7 Pa: both carried.
         let v = [Vector::<2>::zeros(), Vector::<2>::new(10.0, -20.0)];
-        let j = bond_impulse(&bonded(), &law(), [1.0, 1.0], v, &n, 1e-5).unwrap();
+        let bond = bond_impulse(&bonded(), &law(), [1.0, 1.0], v, &n, 1e-5).unwrap();
         let stick = Vector::<2>::new(10.0, -20.0) * 0.5;
-        assert!((j - stick).norm() < 1e-15 * stick.norm());
+        assert!(bond.holds);
+        assert!((bond.impulse - stick).norm() < 1e-15 * stick.norm());
     }
 
     #[test]
@@ -429,10 +456,11 @@ mod tests {
         let mut steps = 0;
         while node.damage < 1.0 && steps < 10_000 {
             let v = [Vector::<2>::zeros(), Vector::<2>::new(0.0, rate)];
-            let j = bond_impulse(&node, &law, [1.0, 1.0], v, &n, dt).unwrap();
+            let bond = bond_impulse(&node, &law, [1.0, 1.0], v, &n, dt).unwrap();
+            assert!(!bond.holds);
             // The bond slows the separation by j / m on each field; keep it simple by
             // letting the fields open at `rate` whatever the force (a stiff loading).
-            dissipated += advance(&mut node, &law, v, &j, &n, dt).dissipated;
+            dissipated += advance(&mut node, &law, v, &bond, &n, dt).dissipated;
             steps += 1;
         }
         let final_opening = 2.0 * law.mode_i_energy / law.normal_strength;
@@ -452,11 +480,15 @@ mod tests {
         let mut node = bonded();
         // Openings of 0.3 of mode I's final opening (2e-4 m) and 0.4 of mode II's (4e-4).
         node.opening = Vector::<2>::new(0.4 * 4e-4, 0.3 * 2e-4);
+        let opening = Bond {
+            impulse: Vector::<2>::zeros(),
+            holds: false,
+        };
         advance(
             &mut node,
             &law,
             [Vector::<2>::zeros(); 2],
-            &Vector::<2>::zeros(),
+            &opening,
             &n,
             1e-6,
         );
@@ -467,7 +499,7 @@ mod tests {
             &mut node,
             &law,
             [Vector::<2>::zeros(); 2],
-            &Vector::<2>::zeros(),
+            &opening,
             &n,
             1e-6,
         );

@@ -206,10 +206,15 @@ pub(crate) fn apply_contact<const D: usize>(
                         && length > 0.0
                     {
                         let n = normal / length;
-                        if let Some(j) =
+                        if let Some(bond) =
                             bond_impulse(node, &law, [m[a], m[b]], [v[a], v[b]], &n, dt)
                         {
-                            let mut new = [v[a] + j / m[a], v[b] - j / m[b]];
+                            let j = bond.impulse;
+                            let mut new = if bond.holds {
+                                [momentum / total; 2]
+                            } else {
+                                [v[a] + j / m[a], v[b] - j / m[b]]
+                            };
                             for (k, f) in [a, b].into_iter().enumerate() {
                                 if !boundaries.is_empty() {
                                     let ijk = node_coords(&stride, i);
@@ -222,7 +227,7 @@ pub(crate) fn apply_contact<const D: usize>(
                                 // SAFETY: as above.
                                 unsafe { *velocity[f].unwrap_unchecked().get(i) = new[k] };
                             }
-                            let change = advance(node, &law, new, &j, &n, dt);
+                            let change = advance(node, &law, new, &bond, &n, dt);
                             stats.cohesive = NodeChange::merge(stats.cohesive, change);
                             stats.nodes += 1;
                             continue;
