@@ -123,13 +123,13 @@ impl Dcb {
         let x1 = self.x0 + self.length;
         // The pins: one grid node each on an arm's mid-plane, held by a stick obstacle that
         // keeps enclosing it (and no other node) while it moves less than a cell.
-        let pin = |y: f64, v: f64| {
+        let pin = |name: &str, y: f64, v: f64| {
             let (lo, hi) = if v > 0.0 {
                 (y - 0.9 * dx, y + 0.08 * dx)
             } else {
                 (y - 0.08 * dx, y + 0.9 * dx)
             };
-            json!({"shape": {"box": {"min": [self.x_load - 0.04 * dx, lo], "max": [self.x_load + 0.04 * dx, hi]}},
+            json!({"name": name, "shape": {"box": {"min": [self.x_load - 0.04 * dx, lo], "max": [self.x_load + 0.04 * dx, hi]}},
                    "condition": "stick", "velocity": [0.0, v]})
         };
         json!({
@@ -141,12 +141,13 @@ impl Dcb {
             "bodies": [
                 {"name": "lower", "material": "arm", "shape": {"box": {"min": [self.x0, y0 - h], "max": [x1, y0]}}},
                 {"name": "upper", "material": "arm", "shape": {"box": {"min": [self.x0, y0], "max": [x1, y0 + h]}}}],
-            "obstacles": [pin(y0 + 0.5 * h, 0.5 * self.speed), pin(y0 - 0.5 * h, -0.5 * self.speed)],
+            "obstacles": [pin("upper pin", y0 + 0.5 * h, 0.5 * self.speed),
+                          pin("lower pin", y0 - 0.5 * h, -0.5 * self.speed)],
             "contact": {"pairs": [{"bodies": ["lower", "upper"],
                 "law": {"cohesive": {"normal_strength": self.strength, "shear_strength": self.strength,
                                      "mode_i_energy": self.energy, "mode_ii_energy": 2.0 * self.energy}},
                 "precrack": {"box": {"min": [0.0, y0 - 2.0 * dx], "max": [self.tip(), y0 + 2.0 * dx]}}}]},
-            "output": {"frames": 60, "fields": ["x", "stress", "interface_damage"]}
+            "output": {"frames": 60, "fields": ["x", "v", "stress", "interface_damage"]}
         })
     }
 }
@@ -401,7 +402,79 @@ fn double_cantilever_beam_follows_beam_theory_for_g_ic() {
     assert_eq!(r.damage, [1.0, 0.0, 0.0]);
 }
 
+/// Whether two JSON values are equal, numbers to 1e-12 relative.
+fn same(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            (x - y).abs() <= 1e-12 * x.abs().max(y.abs())
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same(x, y))
+        }
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| same(v, w)))
+        }
+        _ => a == b,
+    }
+}
+
+#[test]
+fn dcb_example_is_the_tested_beam() {
+    let text = std::fs::read_to_string(example("dcb.json")).unwrap();
+    let mut example: Value = serde_json::from_str(&text).unwrap();
+    example.as_object_mut().unwrap().remove("description");
+    let tested = Dcb::coarse().scene();
+    assert!(same(&example, &tested), "{example:#}\n{tested:#}");
+}
+
 /// Writes `scene` to `dir` and loads it.
 fn load_scene_value(dir: &std::path::Path, scene: &Value) -> ValidatedScene {
     load(&write_scene(dir, "scene.json", scene), &[])
+}
+
+#[test]
+fn cohesive_law_problems_name_their_paths() {
+    let issues = invalid_example(
+        "dcb.json",
+        &[
+            "contact.pairs[0].law.cohesive.normal_strength=-1",
+            "contact.pairs[0].law.cohesive.mode_ii_energy=0",
+            "contact.pairs[0].law.cohesive.mixed_mode_exponent=0.5",
+            "contact.pairs[0].law.cohesive.friction=-0.1",
+        ],
+    );
+    for path in [
+        "normal_strength",
+        "mode_ii_energy",
+        "mixed_mode_exponent",
+        "friction",
+    ] {
+        let at = format!("contact.pairs[0].law.cohesive.{path}:");
+        assert!(issues.iter().any(|i| i.starts_with(&at)), "{at} {issues:?}");
+    }
+    // A precrack needs a cohesive law, and so does the damage field.
+    let issues = invalid_example("dcb.json", &["contact.pairs[0].law=\"frictionless\""]);
+    assert!(
+        issues
+            .iter()
+            .any(|i| i.starts_with("contact.pairs[0].precrack: only a `cohesive` law")),
+        "{issues:?}"
+    );
+    assert!(
+        issues
+            .iter()
+            .any(|i| i.starts_with("output.fields[3]: unknown field `interface_damage`")),
+        "{issues:?}"
+    );
+    // Mixed-mode criteria other than the power law (Benzeggagh–Kenane) are refused.
+    let issues = invalid_example(
+        "dcb.json",
+        &["contact.pairs[0].law.cohesive.mixed_mode=\"bk\""],
+    );
+    println!("{issues:?}");
+    assert!(
+        issues.iter().any(|i| i.contains("mixed_mode")),
+        "{issues:?}"
+    );
 }
