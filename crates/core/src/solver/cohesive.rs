@@ -9,10 +9,14 @@
 //!   a free surface at the end of an interface bonds) are bonded, or start debonded
 //!   inside the pair's `precrack`. Nodes do not move, so the state suits interfaces whose
 //!   faces slide less than a cell (delamination, not long sliding).
-//! - Area: `A = |Σ_p V_p ∇w_ip|` (the volume gradient of each field, from its mass gradient
-//!   and nodal density, mean of the two), the interface area the node's shape function
-//!   sees: the nodal forces a uniform traction `t` puts on a node are `t A`, and the areas
-//!   of the nodes across a flat interface add up to the interface area (partition of unity).
+//! - Area: from the volume gradients `Σ_p V_p ∇w_ip` of the two fields (their mass
+//!   gradients over the nodal densities): the smaller magnitude, or the larger component
+//!   along the interface normal where that is smaller (free surfaces near the node add to
+//!   the gradients; see `bond`); the interface area the node's shape function sees: the nodal forces a uniform traction
+//!   `t` puts on a node are `t A`, and the areas of the nodes across a flat interface add
+//!   up to the interface area (partition of unity). Both bodies must be three cells thick
+//!   or more there: a free surface within the kernel's reach of an interface node adds to
+//!   the volume gradients.
 //! - Law: initially rigid, then linear softening. The impulse that brings the two fields to
 //!   their common velocity (the force the bond must carry) is split into the normal and the
 //!   tangential traction; the normal one is capped at `σc (1 − d)` in tension (compression
@@ -119,6 +123,8 @@ pub(crate) struct Cohesive<const D: usize> {
     failed: usize,
     /// Debonded interface length (2D, m per m of thickness) or area (3D, m²).
     debonded: f64,
+    /// Interface length or area found at the first step (bonded and precracked).
+    interface: f64,
 }
 
 /// What the cohesive law did at one node in one step.
@@ -157,6 +163,7 @@ impl<const D: usize> Cohesive<D> {
             damaged: 0,
             failed: 0,
             debonded: 0.0,
+            interface: 0.0,
         }
     }
 
@@ -191,9 +198,19 @@ impl<const D: usize> Cohesive<D> {
             if !is_cohesive(a, b) || volume[a][i] + volume[b][i] < full {
                 continue;
             }
-            // |Σ V_p ∇w_ip| of each field: its mass gradient (grid units) over its density.
-            let area_of = |f: usize| gradient[f][i].norm() / dx * volume[f][i] / grids[f].mass[i];
-            let area = 0.5 * (area_of(a) + area_of(b));
+            // Each field's volume gradient Σ V_p ∇w_ip (its mass gradient, grid units, over
+            // its nodal density) is the interface's part, the same for both, plus the part
+            // of the field's own free surfaces near the node. The smaller magnitude is exact
+            // where one field has no free surface near; along the normal (the difference of
+            // the two gradients) the larger is exact where the free surfaces are symmetric
+            // about the interface, as at its ends. The smaller of the two estimates.
+            let volume_gradient = |f: usize| gradient[f][i] / dx * volume[f][i] / grids[f].mass[i];
+            let (ga, gb) = (volume_gradient(a), volume_gradient(b));
+            let n = (gradient[a][i] - gradient[b][i]).normalize();
+            let area = ga
+                .norm()
+                .min(gb.norm())
+                .min(ga.dot(&n).abs().max(gb.dot(&n).abs()));
             if !(area > 0.0 && area.is_finite()) {
                 continue;
             }
@@ -214,6 +231,7 @@ impl<const D: usize> Cohesive<D> {
                 opening: Vector::<D>::zeros(),
                 damage: if cracked { 1.0 } else { 0.0 },
             };
+            self.interface += area;
             if cracked {
                 self.failed += 1;
                 self.debonded += area;
@@ -226,8 +244,9 @@ impl<const D: usize> Cohesive<D> {
         SharedSlice::new(&mut self.nodes)
     }
 
-    /// Adds one step's changes to the totals and records them: the figure
-    /// `contact.cohesive_dissipation` and the table `cohesive` (time, debonded length or
+    /// Adds one step's changes to the totals and records them: the figures
+    /// `contact.cohesive_dissipation` and `contact.cohesive_interface` (the interface
+    /// length or area found at the first step) and the table `cohesive` (time, debonded length or
     /// area, damaged and debonded nodes, dissipated energy), a row whenever the number of
     /// debonded nodes changes, at most `MAX_ROWS` rows over the run.
     pub(crate) fn record(
@@ -242,6 +261,7 @@ impl<const D: usize> Cohesive<D> {
         self.failed += change.failed;
         self.debonded += change.failed_area;
         report.record_max("contact.cohesive_dissipation", self.dissipated);
+        report.record_max("contact.cohesive_interface", self.interface);
         let table = report.table_mut(
             "cohesive",
             &[
@@ -305,18 +325,38 @@ pub(crate) fn bond_impulse<const D: usize>(
     let scale = dt * node.area;
     let normal = stick.dot(n) / scale;
     let tangential = (stick - n * stick.dot(n)) / scale;
+    // The bond holds while the tractions stay below the softened strengths.
     let intact = 1.0 - node.damage;
-    let normal_cap = law.normal_strength * intact;
-    let shear_cap = law.shear_strength * intact + law.friction * (-normal).max(0.0);
+    let friction = law.friction * (-normal).max(0.0);
     let slip = tangential.norm();
-    if normal <= normal_cap && slip <= shear_cap {
+    if normal <= law.normal_strength * intact && slip <= law.shear_strength * intact + friction {
         return Some(Bond {
             impulse: stick,
             holds: true,
         });
     }
+    // Otherwise each mode's traction is capped at its mean along the softening line over
+    // the opening the fields would make unbonded this step (`free`, an upper bound of the
+    // opening they make): the softened strength `σc (1 − d)` for small steps, and no more
+    // than the fracture energy the node has left when it would break within the step, so
+    // the explicit step never dissipates more than the law.
+    let relative = (v[1] - v[0]) * dt;
+    let (free_n, free_t) = (
+        relative.dot(n).max(0.0),
+        (relative - n * relative.dot(n)).norm(),
+    );
+    let secant = |strength: f64, energy: f64, free: f64| {
+        let final_opening = 2.0 * energy / strength;
+        let x = (free / final_opening).min(intact);
+        if x > 0.0 {
+            energy * x * (2.0 * intact - x) / free
+        } else {
+            strength * intact
+        }
+    };
+    let normal_cap = secant(law.normal_strength, law.mode_i_energy, free_n);
+    let shear_cap = secant(law.shear_strength, law.mode_ii_energy, free_t) + friction;
     let normal = normal.min(normal_cap);
-    let shear_cap = law.shear_strength * intact + law.friction * (-normal).max(0.0);
     let tangential = if slip > shear_cap {
         tangential * (shear_cap / slip)
     } else {
