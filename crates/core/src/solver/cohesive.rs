@@ -274,15 +274,9 @@ impl<const D: usize> Cohesive<D> {
                 "dissipated",
             ],
         );
-        let row = vec![
-            time,
-            self.debonded,
-            self.damaged as f64,
-            self.failed as f64,
-            self.dissipated,
-        ];
-        let changed = table.rows.last().is_none_or(|last| last[3] != row[3]);
-        if changed {
+        let failed = self.failed as f64;
+        // A row (one allocation) only when the count of debonded nodes changes.
+        if table.rows.last().is_none_or(|last| last[3] != failed) {
             let close = table.rows.len() > 1
                 && table
                     .rows
@@ -291,7 +285,13 @@ impl<const D: usize> Cohesive<D> {
             if close {
                 table.rows.pop();
             }
-            table.rows.push(row);
+            table.rows.push(vec![
+                time,
+                self.debonded,
+                self.damaged as f64,
+                failed,
+                self.dissipated,
+            ]);
         }
     }
 }
