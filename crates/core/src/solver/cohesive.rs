@@ -12,16 +12,18 @@
 //! - Area: from the volume gradients `Σ_p V_p ∇w_ip` of the two fields (their mass
 //!   gradients over the nodal densities): the smaller magnitude, or the larger component
 //!   along the interface normal where that is smaller (free surfaces near the node add to
-//!   the gradients; see `bond`); the interface area the node's shape function sees: the nodal forces a uniform traction
-//!   `t` puts on a node are `t A`, and the areas of the nodes across a flat interface add
-//!   up to the interface area (partition of unity). Both bodies must be three cells thick
-//!   or more there: a free surface within the kernel's reach of an interface node adds to
-//!   the volume gradients.
+//!   the gradients; see `bond`); the interface area the node's shape function sees: the
+//!   nodal forces a uniform traction `t` puts on a node are `t A`, and the areas of the
+//!   nodes across a flat interface add up to the interface area (partition of unity).
+//!   Both bodies must be three cells thick or more there: a free surface within the
+//!   kernel's reach of an interface node adds to the volume gradients.
 //! - Law: initially rigid, then linear softening. The impulse that brings the two fields to
 //!   their common velocity (the force the bond must carry) is split into the normal and the
 //!   tangential traction; the normal one is capped at `σc (1 − d)` in tension (compression
 //!   is carried in full: an intact interface is contact), the tangential one at
-//!   `τc (1 − d) + μ max(0, −t_n)`. Capped, the fields separate and the opening
+//!   `τc (1 − d) + μ max(0, −t_n)`; once past them each mode's traction is its mean along
+//!   the softening line over the opening the fields would make this step (no more than
+//!   the energy the node has left). Capped, the fields separate and the opening
 //!   `δ += (v_g − v_f) dt` grows (integrated from the velocities the particles then move
 //!   with); the damage `d = max over time of min(1, ‖(⟨δn⟩/δnc, δt/δtc)‖_α)` with
 //!   `δc = 2 G_c / strength` per mode. A pure mode dissipates its fracture energy. The law
@@ -53,7 +55,7 @@ use rayon::prelude::*;
 /// surface is half empty (0.5) and the next one misses 2%. Both must bond: left unbonded,
 /// the ends of an interface open and close as contact, and two bonded blocks thrown apart
 /// lost 0.79 of their energy instead of the 0.45 that one shared field (and bonded fields)
-/// lose. 0.6 bonds them (not a 2D corner of both bodies, 0.25) and bonds bodies across
+/// lose. 0.6 bonds them (not the corners of a 3D interface, a quarter full) and bonds bodies across
 /// gaps narrower than about 0.8 cells (at a node in the gap the volume falls by about
 /// 0.75 of the gap's width in cells): closer than that, bodies count as touching.
 const BOND_TOLERANCE: f64 = 0.6;
