@@ -14,6 +14,7 @@ mod scene_file;
 mod schema;
 mod service_cmd;
 pub mod stability;
+pub mod stability_cohesive;
 pub mod stability_implicit;
 mod stdout;
 pub mod study;

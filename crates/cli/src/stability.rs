@@ -489,6 +489,7 @@ pub fn cases() -> Vec<Case> {
             expected: Expected::Finished,
         },
     ];
+    cases.extend(crate::stability_cohesive::cases());
     cases.extend(crate::stability_implicit::cases());
     cases
 }

@@ -190,6 +190,13 @@ fn retain_particles(body: &mut BodyParticles, dim: usize, keep: &[bool]) {
     });
 }
 
+impl Shape {
+    /// Whether point `x` lies in this box, sphere or cylinder (never in a file shape).
+    pub(crate) fn contains(&self, x: &[f64]) -> bool {
+        shape_contains(self, x)
+    }
+}
+
 /// Whether point `x` lies in a box, sphere or cylinder (never in a file shape).
 fn shape_contains(shape: &Shape, x: &[f64]) -> bool {
     match shape {

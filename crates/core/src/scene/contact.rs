@@ -1,10 +1,11 @@
 //! The `contact` section: pairs or groups of bodies (by `name`) that get grid velocity
 //! fields of their own and the law that acts where two fields meet (multi-velocity-field
 //! contact, Bardenhagen et al. 2000); the types and their checks. Bodies not named keep
-//! the shared field. The solver side is `solver/multi_field.rs` and `solver/contact.rs`.
+//! the shared field. The solver side is `solver/multi_field.rs`, `solver/contact.rs` and
+//! (bonded interfaces that can delaminate) `solver/cohesive.rs`.
 
 use super::validator::Validator;
-use super::{Scene, Scheme};
+use super::{Scene, Scheme, Shape};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -31,6 +32,11 @@ pub struct ContactPair {
     pub bodies: Vec<String>,
     /// What happens where their fields meet and approach each other.
     pub law: ContactLaw,
+    /// With a `cohesive` law: the region (box, sphere or cylinder) where the interface
+    /// starts fully debonded (an initial crack); interface nodes inside it are frictional
+    /// contact from the start.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub precrack: Option<Shape>,
 }
 
 /// The law between two contact fields at a node where both have mass, they overlap (the
@@ -49,9 +55,87 @@ pub enum ContactLaw {
     },
     /// Stick while in contact: both fields take their centre-of-mass velocity.
     NoSlip,
+    /// A bonded interface that can delaminate: the bodies are bonded wherever they touch at
+    /// the start, until the traction the bond carries reaches the strength; then it softens
+    /// linearly with the opening and, fully damaged, becomes Coulomb contact.
+    Cohesive(CohesiveLaw),
+}
+
+/// A bilinear (rigid, then linearly softening) traction–separation law for a bonded
+/// interface, with a power-law mixed-mode criterion.
+///
+/// An intact interface holds any traction below the strengths (no elastic compliance:
+/// both bodies move as one) and any compression. Past the strength, the traction falls
+/// linearly with the opening to zero at `2 G / strength`, so a pure mode dissipates its
+/// fracture energy. Mixed mode: the damage is the power-law norm
+/// `((δn/δnc)^α + (δt/δtc)^α)^(1/α)` of the openings over the final openings of each mode
+/// (irreversible), which under proportional opening dissipates the energies of the
+/// criterion `(G_I/G_Ic)^α + (G_II/G_IIc)^α = 1`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CohesiveLaw {
+    /// Tensile strength of the interface, Pa (> 0).
+    pub normal_strength: f64,
+    /// Shear strength of the interface, Pa (> 0).
+    pub shear_strength: f64,
+    /// Mode I fracture energy G_Ic, J/m² (> 0).
+    pub mode_i_energy: f64,
+    /// Mode II fracture energy G_IIc, J/m² (> 0).
+    pub mode_ii_energy: f64,
+    /// Coulomb friction coefficient between the faces once debonded, and added to the
+    /// shear strength under compression while bonded (>= 0; default 0).
+    #[serde(default)]
+    pub friction: f64,
+    /// Exponent α of the power-law mixed-mode criterion (>= 1; default 2).
+    #[serde(default = "default_mixed_mode_exponent")]
+    pub mixed_mode_exponent: f64,
+}
+
+fn default_mixed_mode_exponent() -> f64 {
+    2.0
+}
+
+impl CohesiveLaw {
+    fn validate(&self, v: &mut Validator, path: &str) {
+        for (name, value) in [
+            ("normal_strength", self.normal_strength),
+            ("shear_strength", self.shear_strength),
+            ("mode_i_energy", self.mode_i_energy),
+            ("mode_ii_energy", self.mode_ii_energy),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                v.err(
+                    format!("{path}.{name}"),
+                    format!("must be a finite number > 0 (got {value})"),
+                );
+            }
+        }
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            v.err(
+                format!("{path}.friction"),
+                format!("must be a finite number >= 0 (got {})", self.friction),
+            );
+        }
+        if !(self.mixed_mode_exponent.is_finite() && self.mixed_mode_exponent >= 1.0) {
+            v.err(
+                format!("{path}.mixed_mode_exponent"),
+                format!(
+                    "must be a finite number >= 1 (got {})",
+                    self.mixed_mode_exponent
+                ),
+            );
+        }
+    }
 }
 
 impl ContactSection {
+    /// Whether any pair is a bonded interface (`cohesive` law).
+    pub fn has_cohesive(&self) -> bool {
+        self.pairs
+            .iter()
+            .any(|p| matches!(p.law, ContactLaw::Cohesive(_)))
+    }
+
     /// Checks the pairs against the scene's bodies and the solver settings contact
     /// supports (USL, dynamic mechanics).
     pub(super) fn validate(&self, v: &mut Validator, s: &Scene) {
@@ -97,6 +181,21 @@ impl ContactSection {
                     format!("{path}.law.friction.coefficient"),
                     format!("must be a finite number >= 0 (got {coefficient})"),
                 );
+            }
+            if let ContactLaw::Cohesive(law) = &pair.law {
+                law.validate(v, &format!("{path}.law.cohesive"));
+            }
+            match (&pair.precrack, &pair.law) {
+                (None, _) => {}
+                (Some(_), law) if !matches!(law, ContactLaw::Cohesive(_)) => v.err(
+                    format!("{path}.precrack"),
+                    "only a `cohesive` law has a precrack",
+                ),
+                (Some(Shape::File { .. }), _) => v.err(
+                    format!("{path}.precrack"),
+                    "a precrack is a box, sphere or cylinder",
+                ),
+                (Some(shape), _) => shape.validate(v, &format!("{path}.precrack")),
             }
         }
         if names.len() + 1 > MAX_CONTACT_FIELDS {

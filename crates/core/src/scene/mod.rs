@@ -21,7 +21,7 @@ mod validator;
 pub use body::{Body, InitialVelocity, ParticleFileFormat, Shape};
 pub use body_particles::{BodyParticles, read_csv_particles};
 pub use budget::{Estimate, Limits, estimate};
-pub use contact::{ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};
+pub use contact::{CohesiveLaw, ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};
 pub use domain::{Contact, Domain, Side, Wall};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{Output, StopCriteria};
@@ -30,7 +30,8 @@ pub use solver_settings::{
     Solver, TangentMethod, Transfer,
 };
 pub use validate::{
-    CORE_FIELDS, ValidatedScene, parse_scene, parse_scene_value, parse_scene_value_limited,
+    CORE_FIELDS, INTERFACE_DAMAGE, ValidatedScene, parse_scene, parse_scene_value,
+    parse_scene_value_limited,
 };
 
 use schemars::JsonSchema;

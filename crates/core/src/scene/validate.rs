@@ -38,6 +38,10 @@ impl ValidatedScene {
     }
 }
 
+/// The per-particle output field of a scene with a bonded (`cohesive`) interface: the
+/// largest damage (0 intact, 1 debonded) of the interface nodes around each particle.
+pub const INTERFACE_DAMAGE: &str = "interface_damage";
+
 /// Particle fields the core can write, with their per-particle shape.
 pub const CORE_FIELDS: &[&str] = &["x", "v", "stress", "F", "J", "mass", "volume", "material"];
 
@@ -312,6 +316,9 @@ impl Validator {
             return;
         }
         let mut known: BTreeSet<&str> = CORE_FIELDS.iter().copied().collect();
+        if s.contact.as_ref().is_some_and(|c| c.has_cohesive()) {
+            known.insert(INTERFACE_DAMAGE);
+        }
         for (_, p) in physics {
             for f in p.fields() {
                 known.insert(f.name);

@@ -19,13 +19,18 @@
 //!   removes the normal part of `v_f − v_cm`; Coulomb friction also reduces the tangential
 //!   part by at most `μ` times the normal correction (stick when less is needed); no-slip
 //!   sets `v_cm`. Pairs no scene pair names stay bonded: `v_cm` wherever both have mass,
-//!   which is what a single shared field gives.
+//!   which is what a single shared field gives;
+//! - a `cohesive` pair (a bonded interface that can delaminate, `cohesive.rs`) acts at its
+//!   bonded nodes where only its two fields have mass, with its traction–separation law
+//!   and no gap or approach test; elsewhere, and once debonded, it is Coulomb contact with
+//!   the law's friction coefficient.
 
+use super::cohesive::{CohesiveNode, NodeChange, Precrack, advance, bond_impulse};
 use super::parallel::SharedSlice;
 use crate::boundary::Boundaries;
 use crate::grid::{Grid, node_coords, node_position};
 use crate::math::Vector;
-use crate::scene::{ContactLaw, MAX_CONTACT_FIELDS};
+use crate::scene::{CohesiveLaw, ContactLaw, MAX_CONTACT_FIELDS};
 use rayon::prelude::*;
 
 /// How far below a full support the particle volume at a node may be while the fields
@@ -45,10 +50,13 @@ pub(crate) enum FieldLaw {
     Contact(ContactLaw),
 }
 
-/// The law of every pair of fields, `count × count`.
+/// The law of every pair of fields, `count × count`, and the precracks of the cohesive
+/// pairs.
 pub(crate) struct FieldLaws {
     count: usize,
     laws: Vec<FieldLaw>,
+    /// Where cohesive pairs start debonded.
+    pub(crate) precracks: Vec<Precrack>,
 }
 
 impl FieldLaws {
@@ -57,7 +65,23 @@ impl FieldLaws {
         Self {
             count,
             laws: vec![FieldLaw::Bonded; count * count],
+            precracks: Vec::new(),
         }
+    }
+
+    /// The cohesive law between fields `f` and `g`, if theirs is one.
+    pub(crate) fn cohesive(&self, f: usize, g: usize) -> Option<CohesiveLaw> {
+        match self.get(f, g) {
+            FieldLaw::Contact(ContactLaw::Cohesive(law)) => Some(law),
+            _ => None,
+        }
+    }
+
+    /// Whether any pair of fields has a cohesive law.
+    pub(crate) fn has_cohesive(&self) -> bool {
+        self.laws
+            .iter()
+            .any(|l| matches!(l, FieldLaw::Contact(ContactLaw::Cohesive(_))))
     }
 
     /// Sets the law between fields `f` and `g` (both ways).
@@ -89,6 +113,8 @@ pub(crate) struct ContactStats {
     /// `Σ m_f Δv_t · (v̄_f − v_cm)_t` with the tangential parts of the change and of the
     /// mean of the old and new velocity relative to the centre of mass.
     pub friction_work: f64,
+    /// What the cohesive laws did (energy dissipated, nodes damaged and debonded).
+    pub cohesive: NodeChange,
 }
 
 impl ContactStats {
@@ -98,17 +124,21 @@ impl ContactStats {
             work: a.work + b.work,
             impulse: a.impulse + b.impulse,
             friction_work: a.friction_work + b.friction_work,
+            cohesive: NodeChange::merge(a.cohesive, b.cohesive),
         }
     }
 }
 
 /// The fields' grid data the law reads: velocities (in `grids[f].momentum` after the grid
-/// update), masses, mass gradients and nodal particle volumes.
+/// update), masses, mass gradients and nodal particle volumes; the bonded interfaces'
+/// node states (when the scene has a cohesive pair) and the step.
 pub(crate) struct FieldData<'a, const D: usize> {
     pub grids: &'a mut [Grid<D>],
     pub gradient: &'a [Vec<Vector<D>>],
     pub volume: &'a [Vec<f64>],
     pub laws: &'a FieldLaws,
+    pub cohesive: Option<SharedSlice<CohesiveNode<D>>>,
+    pub dt: f64,
 }
 
 /// Applies the contact laws at every node shared by two or more fields, then the walls and
@@ -132,6 +162,7 @@ pub(crate) fn apply_contact<const D: usize>(
     }
     let grids = &*data.grids;
     let (gradient, volume, laws) = (data.gradient, data.volume, data.laws);
+    let (cohesive, dt) = (data.cohesive, data.dt);
     (0..len.div_ceil(CHUNK))
         .into_par_iter()
         .map(|chunk| {
@@ -160,6 +191,48 @@ pub(crate) fn apply_contact<const D: usize>(
                     momentum += v[f] * m[f];
                     grad_sum += gradient[f][i];
                     filled += volume[f][i];
+                }
+                if present == 2
+                    && let Some(nodes) = cohesive
+                {
+                    let mut fields = (0..count).filter(|&f| m[f] > 0.0);
+                    let (a, b) = (fields.next().unwrap_or(0), fields.next().unwrap_or(0));
+                    // SAFETY: chunks are disjoint node ranges; only this task touches node i.
+                    let node = unsafe { nodes.get(i) };
+                    let normal = gradient[a][i] - gradient[b][i];
+                    let length = normal.norm();
+                    if let Some(law) = laws.cohesive(a, b)
+                        && node.pair == [a as u8, b as u8]
+                        && length > 0.0
+                    {
+                        let n = normal / length;
+                        if let Some(bond) =
+                            bond_impulse(node, &law, [m[a], m[b]], [v[a], v[b]], &n, dt)
+                        {
+                            let j = bond.impulse;
+                            let mut new = if bond.holds {
+                                [momentum / total; 2]
+                            } else {
+                                [v[a] + j / m[a], v[b] - j / m[b]]
+                            };
+                            for (k, f) in [a, b].into_iter().enumerate() {
+                                if !boundaries.is_empty() {
+                                    let ijk = node_coords(&stride, i);
+                                    let x = node_position(&origin, dx, ijk);
+                                    boundaries.apply(ijk, &x, time, m[f], &mut new[k]);
+                                }
+                                stats.work +=
+                                    0.5 * m[f] * (new[k].norm_squared() - v[f].norm_squared());
+                                stats.impulse += m[f] * (new[k] - v[f]).norm();
+                                // SAFETY: as above.
+                                unsafe { *velocity[f].unwrap_unchecked().get(i) = new[k] };
+                            }
+                            let change = advance(node, &law, new, &bond, &n, dt);
+                            stats.cohesive = NodeChange::merge(stats.cohesive, change);
+                            stats.nodes += 1;
+                            continue;
+                        }
+                    }
                 }
                 let v_cm = momentum / total;
                 let touching = filled >= full;
@@ -221,12 +294,24 @@ pub(crate) fn apply_contact<const D: usize>(
 /// at rest on an incline would show work that nothing did).
 #[inline]
 fn sliding<const D: usize>(v: Vector<D>, v_cm: Vector<D>, n: &Vector<D>, law: ContactLaw) -> bool {
-    let ContactLaw::Friction { coefficient } = law else {
+    let ContactLaw::Friction { coefficient } = debonded(law) else {
         return false;
     };
     let relative = v - v_cm;
     let approach = relative.dot(n);
     (relative - n * approach).norm() > coefficient * approach
+}
+
+/// The contact law a pair obeys where it is not bonded: a cohesive law's debonded faces
+/// are Coulomb contact with its friction coefficient; other laws are themselves.
+#[inline]
+fn debonded(law: ContactLaw) -> ContactLaw {
+    match law {
+        ContactLaw::Cohesive(c) => ContactLaw::Friction {
+            coefficient: c.friction,
+        },
+        law => law,
+    }
 }
 
 /// The corrected velocity of a field moving at `v` against the centre of mass `v_cm`
@@ -243,8 +328,8 @@ fn correct<const D: usize>(
     if approach <= 0.0 {
         return None;
     }
-    Some(match law {
-        ContactLaw::NoSlip => v_cm,
+    Some(match debonded(law) {
+        ContactLaw::NoSlip | ContactLaw::Cohesive(_) => v_cm,
         ContactLaw::Frictionless => v - n * approach,
         ContactLaw::Friction { coefficient } => {
             let tangential = relative - n * approach;

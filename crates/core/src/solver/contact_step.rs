@@ -6,7 +6,9 @@
 //! energy friction dissipated so far), the largest number of contact nodes and the times
 //! contact starts and ends (table `contact`). The normal corrections of frictionless
 //! contact are left out (see `ContactStats::work`): their loss shows as a fall of the
-//! energy, which the growth check allows.
+//! energy, which the growth check allows. Bonded interfaces (`cohesive`) are found at the
+//! first step; the energy their laws dissipate enters the balance the same way
+//! (`contact.cohesive_dissipation`) and the table `cohesive` follows the debonding.
 
 use super::DimensionDispatch;
 use super::contact::{FieldData, apply_contact};
@@ -47,16 +49,34 @@ where
         for grid in &mut fields.grids {
             self.boundary_work += update_grid(grid, &self.boundaries, grid_params);
         }
+        if let Some(cohesive) = fields.cohesive.as_mut() {
+            let laws = &fields.laws;
+            cohesive.bond(&fields.grids, &fields.gradient, &fields.volume, |a, b| {
+                laws.cohesive(a, b).is_some()
+            });
+        }
         let stats = apply_contact(
             FieldData {
                 grids: &mut fields.grids,
                 gradient: &fields.gradient,
                 volume: &fields.volume,
                 laws: &fields.laws,
+                cohesive: fields.cohesive.as_mut().map(|c| c.shared()),
+                dt,
             },
             &self.boundaries,
             time,
         );
+        if let Some(cohesive) = fields.cohesive.as_mut() {
+            // The bonds dissipate energy: the balance subtracts it as work on the bodies.
+            self.boundary_work -= stats.cohesive.dissipated;
+            cohesive.record(
+                stats.cohesive,
+                self.time + dt,
+                self.settings.end_time,
+                &mut self.report,
+            );
+        }
         // Friction does work on the bodies: the energy balance subtracts it.
         self.boundary_work += stats.friction_work;
         fields.dissipated -= stats.friction_work;

@@ -10,9 +10,11 @@
 //! - `run_loop` is the run loop every mode shares: time step choice, output frames, the
 //!   reference, stop checks; `output_staging` copies particle fields into output order.
 //! - contact between bodies: `multi_field` (one grid velocity field per contact body),
-//!   `contact` (the law where fields meet), `contact_step` (the USL step that uses them).
+//!   `contact` (the law where fields meet), `cohesive` (bonded interfaces that can
+//!   delaminate), `contact_step` (the USL step that uses them).
 
 mod binning;
+mod cohesive;
 mod contact;
 mod contact_step;
 mod explicit;

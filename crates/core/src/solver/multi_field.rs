@@ -5,6 +5,7 @@
 //! buffer is reused from step to step.
 
 use super::binning::SlabBins;
+use super::cohesive::{Cohesive, Precrack};
 use super::contact::FieldLaws;
 use super::parallel::SharedSlice;
 use super::particle_to_grid::{P2gParams, particle_to_grid};
@@ -33,6 +34,8 @@ pub(crate) struct MultiField<const D: usize> {
     pub(crate) dissipated: f64,
     /// Whether a contact law acted in the last step.
     pub(crate) touching: bool,
+    /// The bonded interfaces' node states (only with a cohesive pair).
+    pub(crate) cohesive: Option<Cohesive<D>>,
 }
 
 /// The contact field of every body of `scene` (by body index), the number of fields and the
@@ -68,6 +71,12 @@ pub(crate) fn body_fields(scene: &Scene) -> Option<(Vec<u8>, usize, FieldLaws)> 
                     && f != g
                 {
                     laws.set(f, g, pair.law);
+                    if let Some(shape) = &pair.precrack {
+                        laws.precracks.push(Precrack {
+                            pair: [f.min(g) as u8, f.max(g) as u8],
+                            shape: shape.clone(),
+                        });
+                    }
                 }
             }
         }
@@ -82,9 +91,12 @@ impl<const D: usize> MultiField<D> {
         flip: bool,
         span: usize,
         counts: &[usize],
-        laws: FieldLaws,
+        mut laws: FieldLaws,
     ) -> Self {
         let cells = grid.cells;
+        let cohesive = laws
+            .has_cohesive()
+            .then(|| Cohesive::new(grid.len(), std::mem::take(&mut laws.precracks)));
         Self {
             grids: counts
                 .iter()
@@ -102,6 +114,7 @@ impl<const D: usize> MultiField<D> {
             laws,
             dissipated: 0.0,
             touching: false,
+            cohesive,
         }
     }
 
@@ -114,6 +127,7 @@ impl<const D: usize> MultiField<D> {
                 .map(|g| g.capacity() * std::mem::size_of::<Vector<D>>())
                 .sum::<usize>()
             + self.volume.iter().map(|v| v.capacity() * 8).sum::<usize>()
+            + self.cohesive.as_ref().map_or(0, Cohesive::bytes)
     }
 
     /// P2G into every field (each field's particles only, with `params`), the fields' mass

@@ -109,6 +109,7 @@ where
         index: usize,
         dt: f64,
     ) -> Result<(), OutputError> {
+        self.gather_interface_damage();
         fill_staging(&self.particles, &self.fields, &mut self.staging);
         let k = &self.kinematics;
         let strain = self.stresses.batch.strain_energy;

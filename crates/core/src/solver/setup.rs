@@ -16,7 +16,7 @@ use crate::material::{FieldInit, Material};
 use crate::math::{Matrix, Vector, vector_from_slice};
 use crate::particles::{MaterialGroup, Particles};
 use crate::physics::{GroupView, Interpolation, ParticleFields, PhysicsReport};
-use crate::scene::{Transfer, ValidatedScene};
+use crate::scene::{INTERFACE_DAMAGE, Transfer, ValidatedScene};
 
 impl<const D: usize, K: Kernel> Simulation<D, K>
 where
@@ -68,6 +68,15 @@ where
             for spec in physics.fields() {
                 particles.shared.add(spec, n);
             }
+        }
+        if s.contact.as_ref().is_some_and(|c| c.has_cohesive())
+            && s.output.fields.iter().any(|f| f == INTERFACE_DAMAGE)
+        {
+            let spec = crate::physics::SharedFieldSpec {
+                name: INTERFACE_DAMAGE,
+                initial: 0.0,
+            };
+            particles.shared.add(spec, n);
         }
         // Bodies of one material are stored together so each law sees contiguous batches.
         let mut order: Vec<&crate::scene::BodyParticles> = v.bodies.iter().collect();
