@@ -6,48 +6,13 @@
 mod common;
 
 use common::*;
-use mpm_core::output::{Frame, Metrics, Outcome, OutputError, OutputSink, RunInfo};
+use mpm_core::output::{Metrics, Outcome};
 use mpm_core::scene::ValidatedScene;
-use mpm_core::solver::{Control, Progress, run_scene};
 use serde_json::{Value, json};
 
-/// Keeps the time, positions, stresses and interface damage of every frame.
-#[derive(Default)]
-struct Frames {
-    index: [usize; 3],
-    times: Vec<f64>,
-    position: Vec<Vec<f64>>,
-    stress: Vec<Vec<f64>>,
-    damage: Vec<Vec<f64>>,
-}
-
-impl OutputSink for Frames {
-    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
-        for (k, name) in ["x", "stress", "interface_damage"].iter().enumerate() {
-            self.index[k] = info
-                .fields
-                .iter()
-                .position(|f| f.name == *name)
-                .ok_or_else(|| OutputError(format!("the scene must write {name}")))?;
-        }
-        Ok(())
-    }
-    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
-        self.times.push(frame.time);
-        self.position.push(frame.values[self.index[0]].clone());
-        self.stress.push(frame.values[self.index[1]].clone());
-        self.damage.push(frame.values[self.index[2]].clone());
-        Ok(())
-    }
-    fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
-        Ok(())
-    }
-}
-
-fn run_frames(scene: &ValidatedScene) -> (Metrics, Frames) {
-    let mut frames = Frames::default();
-    let m = run_scene(scene, &mut frames, &mut |_: &Progress| Control::Continue).expect("run");
-    (m, frames)
+/// Runs `scene` keeping positions, stress and interface damage (`values[0..3]`).
+fn run_frames(scene: &ValidatedScene) -> (Metrics, FieldFrames) {
+    run_fields(scene, &["x", "stress", "interface_damage"])
 }
 
 /// The double cantilever beam of the test, in SI units, per metre of thickness (plane
@@ -154,11 +119,11 @@ impl Dcb {
 
 /// The shear force carried by the upper arm between the pin and the initial crack tip
 /// (Σ σ_xy V_p over a strip, divided by its length): the load on the pin.
-fn pin_load(dcb: &Dcb, frames: &Frames, k: usize) -> f64 {
+fn pin_load(dcb: &Dcb, frames: &FieldFrames, k: usize) -> f64 {
     let (from, to) = (dcb.x_load + 0.005, dcb.tip() - 0.005);
     let volume = dcb.dx * dcb.dx / 4.0;
-    let x = &frames.position[k];
-    let s = &frames.stress[k];
+    let x = &frames.values[0][k];
+    let s = &frames.values[1][k];
     let sum: f64 = (0..x.len() / 2)
         .filter(|&p| x[2 * p] > from && x[2 * p] < to && x[2 * p + 1] > dcb.y0)
         .map(|p| s[4 * p + 1] * volume)
@@ -170,8 +135,8 @@ fn pin_load(dcb: &Dcb, frames: &Frames, k: usize) -> f64 {
 /// of the two arms' particles within a cell of the pins (the arms' deflection there, not
 /// the pins' travel, which adds the local indentation of a point load: logarithmic in
 /// the cell size in 2D).
-fn openings(dcb: &Dcb, frames: &Frames) -> Vec<f64> {
-    let x0 = &frames.position[0];
+fn openings(dcb: &Dcb, frames: &FieldFrames) -> Vec<f64> {
+    let x0 = &frames.values[0][0];
     let near: Vec<(usize, bool)> = (0..x0.len() / 2)
         .filter(|&p| (x0[2 * p] - dcb.x_load).abs() <= dcb.dx)
         .map(|p| (p, x0[2 * p + 1] > dcb.y0))
@@ -188,7 +153,7 @@ fn openings(dcb: &Dcb, frames: &Frames) -> Vec<f64> {
         mean(true) - mean(false)
     };
     let start = gap(x0);
-    frames.position.iter().map(|x| gap(x) - start).collect()
+    frames.values[0].iter().map(|x| gap(x) - start).collect()
 }
 
 /// The last row of the `cohesive` table at or before `time` (the first row before it):
@@ -278,7 +243,7 @@ fn run_dcb(dcb: &Dcb) -> DcbResult {
         }
     }
     let mut damage = [0.0f64; 3];
-    let (x0, last) = (&frames.position[0], frames.damage.last().unwrap());
+    let (x0, last) = (&frames.values[0][0], frames.values[2].last().unwrap());
     for (p, d) in last.iter().enumerate() {
         let (x, y) = (x0[2 * p], x0[2 * p + 1]);
         let near = (y - dcb.y0).abs() < dcb.dx;
@@ -571,25 +536,10 @@ fn a_weak_bond_debonds_its_whole_interface_and_the_areas_add_up() {
 /// degrees), bonded to it by a cohesive interface of strength `strength` and fracture
 /// energies `energy`, Coulomb friction `mu` once debonded.
 fn bonded_incline(angle: f64, strength: f64, energy: f64, mu: f64) -> Value {
-    let (s, c) = angle.to_radians().sin_cos();
-    json!({
-        "name": "bonded-incline", "dimension": 2,
-        "domain": {"min": [0, 0], "max": [1.6, 0.3], "cell_size": 0.02,
-                   "walls": [{"sides": ["y-"], "condition": "stick"}]},
-        "solver": {"end_time": 0.5, "gravity": [9.81 * s, -9.81 * c], "cfl": 0.3},
-        "materials": {
-            "slab": {"type": "linear_elastic", "density": 2000.0, "youngs_modulus": 2e6, "poisson_ratio": 0.3},
-            "block": {"type": "linear_elastic", "density": 1000.0, "youngs_modulus": 1e6, "poisson_ratio": 0.3}
-        },
-        "bodies": [
-            {"name": "slab", "material": "slab", "shape": {"box": {"min": [0, 0], "max": [1.6, 0.1]}}},
-            {"name": "block", "material": "block", "shape": {"box": {"min": [0.2, 0.1], "max": [0.4, 0.18]}}}
-        ],
-        "contact": {"pairs": [{"bodies": ["slab", "block"], "law": {"cohesive": {
-            "normal_strength": strength, "shear_strength": strength,
-            "mode_i_energy": energy, "mode_ii_energy": energy, "friction": mu}}}]},
-        "output": {"frames": 50, "fields": ["x", "stress", "interface_damage"]}
-    })
+    let law = json!({"cohesive": {
+        "normal_strength": strength, "shear_strength": strength,
+        "mode_i_energy": energy, "mode_ii_energy": energy, "friction": mu}});
+    incline_scene(angle, law, &["x", "stress", "interface_damage"])
 }
 
 /// The block's mean acceleration along the slope over `t ≥ 0.1` s (second differences of
@@ -599,10 +549,9 @@ fn block_acceleration(scene: &Value) -> (f64, f64, Metrics) {
     let scene = load_scene_value(dir.path(), scene);
     let (m, frames) = run_frames(&scene);
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
-    let x0 = &frames.position[0];
+    let x0 = &frames.values[0][0];
     let block: Vec<usize> = (0..x0.len() / 2).filter(|&p| x0[2 * p + 1] > 0.1).collect();
-    let mean_x: Vec<f64> = frames
-        .position
+    let mean_x: Vec<f64> = frames.values[0]
         .iter()
         .map(|x| block.iter().map(|&p| x[2 * p]).sum::<f64>() / block.len() as f64)
         .collect();

@@ -8,40 +8,8 @@
 mod common;
 
 use common::*;
-use mpm_core::output::{Frame, Metrics, Outcome, OutputError, OutputSink, RunInfo};
-use mpm_core::solver::{Control, Progress, run_scene};
+use mpm_core::output::{Metrics, Outcome};
 use serde_json::{Value, json};
-
-/// Keeps the time, positions and stresses of every frame.
-#[derive(Default)]
-struct Frames {
-    index: [usize; 2],
-    times: Vec<f64>,
-    position: Vec<Vec<f64>>,
-    stress: Vec<Vec<f64>>,
-}
-
-impl OutputSink for Frames {
-    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
-        for (k, name) in ["x", "stress"].iter().enumerate() {
-            self.index[k] = info
-                .fields
-                .iter()
-                .position(|f| f.name == *name)
-                .ok_or_else(|| OutputError(format!("the scene must write {name}")))?;
-        }
-        Ok(())
-    }
-    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
-        self.times.push(frame.time);
-        self.position.push(frame.values[self.index[0]].clone());
-        self.stress.push(frame.values[self.index[1]].clone());
-        Ok(())
-    }
-    fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
-        Ok(())
-    }
-}
 
 /// The debonded length at `time` (the last row of the `cohesive` table at or before it).
 fn debonded(m: &Metrics, time: f64) -> f64 {
@@ -144,22 +112,20 @@ fn end_notched_flexure_against_beam_theory() {
     }
     let dir = tempfile::tempdir().unwrap();
     let scene = load(&write_scene(dir.path(), "enf.json", &enf.scene()), &[]);
-    let mut frames = Frames::default();
-    let m = run_scene(&scene, &mut frames, &mut |_: &Progress| Control::Continue).expect("run");
+    let (m, frames) = run_fields(&scene, &["x", "stress"]);
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
     let e_prime = enf.youngs / (1.0 - enf.poisson * enf.poisson);
     let (h, l, dx) = (enf.h, enf.half_span(), enf.dx);
     let a0 = enf.tip - enf.supports[0];
     let start = debonded(&m, 0.0);
-    let x0 = &frames.position[0];
+    let x0 = &frames.values[0][0];
     let count = x0.len() / 2;
     // Mean height of the particles within a cell of `x`, in every frame.
     let height = |x: f64| -> Vec<f64> {
         let near: Vec<usize> = (0..count)
             .filter(|&p| (x0[2 * p] - x).abs() <= dx)
             .collect();
-        frames
-            .position
+        frames.values[0]
             .iter()
             .map(|y| near.iter().map(|&p| y[2 * p + 1]).sum::<f64>() / near.len() as f64)
             .collect()
@@ -176,8 +142,8 @@ fn end_notched_flexure_against_beam_theory() {
         let deflection = -(mid[k] - mid[0]) + 0.5 * ((left[k] - left[0]) + (right[k] - right[0]));
         // The shear force in the uncracked half (both arms) is half the load.
         let (from, to) = (enf.centre() + 0.01, enf.supports[1] - 0.01);
-        let x = &frames.position[k];
-        let s = &frames.stress[k];
+        let x = &frames.values[0][k];
+        let s = &frames.values[1][k];
         let shear: f64 = (0..count)
             .filter(|&p| x[2 * p] > from && x[2 * p] < to)
             .map(|p| s[4 * p + 1] * dx * dx / 4.0)

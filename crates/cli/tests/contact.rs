@@ -203,23 +203,7 @@ fn shared_field_disks_interact_before_their_surfaces_meet() {
 /// A block on an elastic slab held at its base, gravity tilted by `angle` degrees, Coulomb
 /// friction `mu` between them.
 fn incline(angle: f64, mu: f64) -> Value {
-    let (s, c) = angle.to_radians().sin_cos();
-    json!({
-        "name": "incline", "dimension": 2,
-        "domain": {"min": [0, 0], "max": [1.6, 0.3], "cell_size": 0.02,
-                   "walls": [{"sides": ["y-"], "condition": "stick"}]},
-        "solver": {"end_time": 0.5, "gravity": [9.81 * s, -9.81 * c], "cfl": 0.3},
-        "materials": {
-            "slab": {"type": "linear_elastic", "density": 2000.0, "youngs_modulus": 2e6, "poisson_ratio": 0.3},
-            "block": {"type": "linear_elastic", "density": 1000.0, "youngs_modulus": 1e6, "poisson_ratio": 0.3}
-        },
-        "bodies": [
-            {"name": "slab", "material": "slab", "shape": {"box": {"min": [0, 0], "max": [1.6, 0.1]}}},
-            {"name": "block", "material": "block", "shape": {"box": {"min": [0.2, 0.1], "max": [0.4, 0.18]}}}
-        ],
-        "contact": {"pairs": [{"bodies": ["slab", "block"], "law": {"friction": {"coefficient": mu}}}]},
-        "output": {"frames": 50, "fields": ["v"]}
-    })
+    incline_scene(angle, json!({"friction": {"coefficient": mu}}), &["v"])
 }
 
 /// Least-squares slope of `y` against `t` over `t ≥ from`.

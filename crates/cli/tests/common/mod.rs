@@ -1,7 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-use mpm_core::output::{Metrics, NullSink};
+use mpm_core::output::{Frame, Metrics, NullSink, OutputError, OutputSink, RunInfo};
 use mpm_core::scene::ValidatedScene;
 use mpm_core::solver::{Control, Progress, run_scene};
 use std::io::{BufRead, BufReader};
@@ -95,4 +95,83 @@ pub fn serve(command: &mut Command) -> (Child, String) {
     };
     std::thread::spawn(move || for _ in lines {});
     (child, url)
+}
+
+/// An output sink that keeps the time and the values of the named fields of every frame
+/// (`values[k][frame]`, particles in output order), for tests that follow a run.
+pub struct FieldFrames {
+    names: &'static [&'static str],
+    index: Vec<usize>,
+    /// Time of each frame.
+    pub times: Vec<f64>,
+    /// Per named field, per frame, its values.
+    pub values: Vec<Vec<Vec<f64>>>,
+}
+
+impl FieldFrames {
+    /// A sink for the fields `names` (output names: `x`, `v`, `stress`, ...).
+    pub fn new(names: &'static [&'static str]) -> Self {
+        Self {
+            names,
+            index: vec![0; names.len()],
+            times: Vec::new(),
+            values: vec![Vec::new(); names.len()],
+        }
+    }
+}
+
+impl OutputSink for FieldFrames {
+    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
+        for (k, name) in self.names.iter().enumerate() {
+            self.index[k] = info
+                .fields
+                .iter()
+                .position(|f| f.name == *name)
+                .ok_or_else(|| OutputError(format!("the scene must write {name}")))?;
+        }
+        Ok(())
+    }
+    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
+        self.times.push(frame.time);
+        for (k, &i) in self.index.iter().enumerate() {
+            self.values[k].push(frame.values[i].clone());
+        }
+        Ok(())
+    }
+    fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
+        Ok(())
+    }
+}
+
+/// Runs `scene` keeping the fields `names` of every frame.
+pub fn run_fields(
+    scene: &ValidatedScene,
+    names: &'static [&'static str],
+) -> (Metrics, FieldFrames) {
+    let mut frames = FieldFrames::new(names);
+    let m = run_scene(scene, &mut frames, &mut |_: &Progress| Control::Continue).expect("run");
+    (m, frames)
+}
+
+/// A block (0.2 × 0.08 m, E 1 MPa) on an elastic slab (1.6 × 0.1 m, E 2 MPa) held at its
+/// base, gravity tilted by `angle` degrees, the contact `law` between them, writing
+/// `fields` 50 times over 0.5 s.
+pub fn incline_scene(angle: f64, law: serde_json::Value, fields: &[&str]) -> serde_json::Value {
+    let (s, c) = angle.to_radians().sin_cos();
+    serde_json::json!({
+        "name": "incline", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [1.6, 0.3], "cell_size": 0.02,
+                   "walls": [{"sides": ["y-"], "condition": "stick"}]},
+        "solver": {"end_time": 0.5, "gravity": [9.81 * s, -9.81 * c], "cfl": 0.3},
+        "materials": {
+            "slab": {"type": "linear_elastic", "density": 2000.0, "youngs_modulus": 2e6, "poisson_ratio": 0.3},
+            "block": {"type": "linear_elastic", "density": 1000.0, "youngs_modulus": 1e6, "poisson_ratio": 0.3}
+        },
+        "bodies": [
+            {"name": "slab", "material": "slab", "shape": {"box": {"min": [0, 0], "max": [1.6, 0.1]}}},
+            {"name": "block", "material": "block", "shape": {"box": {"min": [0.2, 0.1], "max": [0.4, 0.18]}}}
+        ],
+        "contact": {"pairs": [{"bodies": ["slab", "block"], "law": law}]},
+        "output": {"frames": 50, "fields": fields}
+    })
 }
