@@ -8,7 +8,7 @@ use common::*;
 use reqwest::blocking::Client;
 use serde_json::{Value, json};
 use std::path::Path;
-use std::process::{Child, Command};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 fn example_json(name: &str) -> Value {
@@ -138,7 +138,7 @@ fn limits_name_the_estimate_and_can_be_changed() {
 }
 
 struct Server {
-    child: Child,
+    _child: Process,
     url: String,
 }
 
@@ -152,22 +152,15 @@ impl Server {
                 .arg(data)
                 .args(extra),
         );
-        Server { child, url }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        Server {
+            _child: Process(child),
+            url,
+        }
     }
 }
 
 fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(30))
-        .build()
-        .unwrap()
+    http_client(30)
 }
 
 fn post(url: &str, scene: &Value) -> (u16, Value) {

@@ -362,7 +362,7 @@ fn a_run_that_stops_on_a_check_exits_3() {
 
 /// `mpm serve` on a free loopback port with its data in a temporary folder.
 struct Server {
-    child: Child,
+    _child: Process,
     url: String,
     _data: tempfile::TempDir,
 }
@@ -374,17 +374,10 @@ impl Server {
             command(&["serve", "--listen", "127.0.0.1:0", "--data"], data.path()).arg(data.path()),
         );
         Server {
-            child,
+            _child: Process(child),
             url,
             _data: data,
         }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 

@@ -7,11 +7,11 @@ use common::*;
 use reqwest::blocking::Client;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 struct Server {
-    child: Child,
+    child: Process,
     url: String,
 }
 
@@ -23,26 +23,19 @@ impl Server {
                 .arg(data)
                 .args(extra),
         );
-        Server { child, url }
+        Server {
+            child: Process(child),
+            url,
+        }
     }
 
     fn kill(&mut self) {
-        let _ = self.child.kill(); // SIGKILL
-        let _ = self.child.wait();
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        self.kill();
+        self.child.kill(); // SIGKILL
     }
 }
 
 fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(60))
-        .build()
-        .unwrap()
+    http_client(60)
 }
 
 fn submit(url: &str, scene: &Value) -> reqwest::blocking::Response {

@@ -7,12 +7,12 @@ use common::*;
 use reqwest::blocking::{Client, RequestBuilder};
 use serde_json::{Value, json};
 use std::path::Path;
-use std::process::{Child, Command};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// `mpm serve` killed when dropped; its stderr (the log) goes to a file.
 struct Server {
-    child: Child,
+    _child: Process,
     url: String,
     log: std::path::PathBuf,
 }
@@ -28,7 +28,11 @@ impl Server {
                 .env_remove("RUST_LOG")
                 .stderr(std::fs::File::create(&log).unwrap()),
         );
-        Server { child, url, log }
+        Server {
+            _child: Process(child),
+            url,
+            log,
+        }
     }
 
     /// The JSON log lines so far.
@@ -41,18 +45,8 @@ impl Server {
     }
 }
 
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
 fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(60))
-        .build()
-        .unwrap()
+    http_client(60)
 }
 
 fn small_bar() -> Value {

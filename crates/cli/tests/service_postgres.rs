@@ -12,7 +12,7 @@ use reqwest::blocking::Client;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Small jobs submitted besides the one that is interrupted.
@@ -176,21 +176,8 @@ impl Drop for Postgres {
     }
 }
 
-/// A child process killed (SIGKILL) and reaped when dropped.
-struct Process(Child);
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(60))
-        .build()
-        .unwrap()
+    http_client(60)
 }
 
 fn submit(url: &str, scene: &Value) -> String {

@@ -78,6 +78,32 @@ pub fn text(o: &Output) -> String {
     )
 }
 
+/// A child process killed (SIGKILL) and reaped when dropped, so a failing test leaves no
+/// server behind.
+pub struct Process(pub Child);
+
+impl Process {
+    /// Kills and reaps it now (a crash, for the tests that restart a server).
+    pub fn kill(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// A blocking HTTP client whose requests give up after `seconds`.
+pub fn http_client(seconds: u64) -> reqwest::blocking::Client {
+    reqwest::blocking::Client::builder()
+        .timeout(std::time::Duration::from_secs(seconds))
+        .build()
+        .unwrap()
+}
+
 /// Spawns `command` (an `mpm serve` on `127.0.0.1:0`), waits for the address it prints and
 /// keeps draining its stdout so it never blocks; returns the child and its base URL. Its
 /// stderr goes where the caller set it (inherited by default).
