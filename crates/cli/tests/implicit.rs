@@ -245,3 +245,92 @@ fn plate_with_a_hole_carries_kirschs_stress_field() {
     );
     assert!(error < 0.05, "near-field error {error}");
 }
+
+#[test]
+fn implicit_plasticity_follows_the_uniaxial_strain_closed_form() {
+    // A Johnson–Cook block (rate-independent: C = 0) compressed in plane strain between
+    // slip walls by a stick grip moving down: uniaxial strain, 10 static steps to 4%
+    // shortening, about 10× the yield strain. Closed form at each particle's own stretch
+    // λ = F_yy (monotonic uniaxial strain is path-independent): plastic strain
+    // εₚ = (2/3)|ln λ| − q/(3μ) with q = σ_y(εₚ), and σ_yy = (−(2/3) q + K ln λ)/λ.
+    let (e, nu) = (200e9, 0.29);
+    let (y0, b, n) = (792e6, 510e6, 0.26);
+    let scene = serde_json::json!({
+        "name": "jc-uniaxial-strain",
+        "dimension": 2,
+        "domain": {"min": [0.0, 0.0], "max": [0.01, 0.014], "cell_size": 0.001,
+            "walls": [{"sides": ["x-", "x+", "y-"], "condition": "slip"}]},
+        "solver": {"end_time": 1e-3, "dt": 1e-4, "kernel": "bspline2", "transfer": "apic",
+            "mechanics": {"implicit": {"form": "static"}}},
+        "materials": {"steel": {"type": "johnson_cook", "density": 7830.0,
+            "youngs_modulus": e, "poisson_ratio": nu, "specific_heat": 477.0,
+            "taylor_quinney": 0.0,
+            "flow_stress": {"yield_stress": y0, "hardening_modulus": b, "hardening_exponent": n,
+                "strain_rate_sensitivity": 0.0, "thermal_softening_exponent": 1.03,
+                "reference_strain_rate": 1.0, "room_temperature": 293.0, "melt_temperature": 1793.0}}},
+        "obstacles": [{"shape": {"box": {"min": [-0.01, 0.008], "max": [0.02, 0.02]}},
+            "condition": "stick", "velocity": [0.0, -0.4]}],
+        "bodies": [{"name": "block", "material": "steel",
+            "shape": {"box": {"min": [0.0, 0.0], "max": [0.01, 0.01]}}, "particles_per_cell": 2}],
+        "output": {"frames": 1, "fields": ["x", "F", "stress"]}
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let scene = load(&write_scene(dir.path(), "jc.json", &scene), &[]);
+    let (m, frames) = run_fields(&scene, &["x", "F", "stress"]);
+    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+    let mu = e / (2.0 * (1.0 + nu));
+    let bulk = e / (3.0 * (1.0 - 2.0 * nu));
+    let flow = |strain: f64| y0 + b * strain.max(0.0).powf(n);
+    let last = frames.times.len() - 1;
+    let (x, f, stress) = (
+        &frames.values[0][last],
+        &frames.values[1][last],
+        &frames.values[2][last],
+    );
+    let (mut scatter, mut checked, mut shortest) = (0.0f64, 0, 1.0f64);
+    let (mut sum, mut sum_expected) = (0.0, 0.0);
+    for p in 0..x.len() / 2 {
+        // The free part, below the grip and away from the bottom wall's layer.
+        if !(0.001..0.007).contains(&x[2 * p + 1]) {
+            continue;
+        }
+        let stretch = f[4 * p + 3];
+        shortest = shortest.min(stretch);
+        let strain = stretch.ln().abs();
+        let (mut lo, mut hi) = (0.0, 2.0 / 3.0 * strain);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if 2.0 / 3.0 * strain - flow(mid) / (3.0 * mu) - mid > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let q = flow(lo).min(2.0 * mu * strain);
+        let expected = (-2.0 / 3.0 * q + bulk * stretch.ln()) / stretch;
+        scatter = scatter.max((stress[4 * p + 3] - expected).abs() / expected.abs());
+        sum += stress[4 * p + 3];
+        sum_expected += expected;
+        checked += 1;
+    }
+    let mean = sum / sum_expected - 1.0;
+    println!(
+        "{checked} particles, shortest stretch {shortest:.4}, mean σ_yy error {mean:.2e}, \
+         largest particle error {scatter:.2e}"
+    );
+    assert!(checked > 50);
+    assert!(
+        shortest < 0.97,
+        "the block must be compressed well past yield: {shortest}"
+    );
+    // Measured: mean −0.46%. Particle by particle the stress scatters by up to 20% (also
+    // with 3 and 4 particles per cell): isochoric plastic flow leaves only the bulk
+    // modulus against volume change, and without an anti-locking form in the implicit mode
+    // the volume ratio oscillates by ±0.6% from particle to particle (volumetric locking,
+    // the ν → 0.5 problem). The mean over the free part, which equilibrium fixes, is the
+    // checked quantity.
+    assert!(
+        mean.abs() < 1e-2,
+        "mean σ_yy off the closed form by {mean:.2e}"
+    );
+}

@@ -52,6 +52,13 @@ pub struct StateSlices<'a> {
     pub fields: [&'a mut [f64]; MAX_STATE_FIELDS],
 }
 
+/// The state fields of one batch, read-only: what the implicit tangent sees of the state
+/// the step started from (see [`TangentBatch::state`]).
+pub struct StateView<'a> {
+    /// One slice per declared field, in declaration order; unused entries are empty.
+    pub fields: [&'a [f64]; MAX_STATE_FIELDS],
+}
+
 /// Everything a material sees of one batch of its particles.
 pub struct StressBatch<'a, const D: usize> {
     /// Time step of the update, seconds.
@@ -86,6 +93,9 @@ pub struct TangentBatch<'a, const D: usize> {
     pub direction: &'a [Matrix<D>],
     /// Cauchy stress at `deformation_gradient`.
     pub stress: &'a [Matrix<D>],
+    /// The law's state at the start of the step, i.e. the state `update_stress` started
+    /// from to reach `stress` (a path-dependent law differentiates its return map from it).
+    pub state: StateView<'a>,
     /// The shared fields the law reads, as in [`StressBatch::shared`].
     pub shared: [&'a [f64]; MAX_SHARED_READS],
     /// Where the law writes dσ = ∂σ/∂F : direction, per particle.
@@ -138,8 +148,9 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
         false
     }
     /// The directional derivative of the stress, dσ = ∂σ/∂F : δF, of every particle in
-    /// the batch at its deformation gradient (stateless laws; a law with state keeps the
-    /// default). Called only when [`ConstitutiveLaw::has_stress_derivative`] says so.
+    /// the batch at its deformation gradient: for a law with state, the derivative of the
+    /// update from [`TangentBatch::state`] (the consistent tangent of its return map).
+    /// Called only when [`ConstitutiveLaw::has_stress_derivative`] says so.
     fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
         let _ = batch;
     }

@@ -89,7 +89,7 @@ fn derivative_error<L: ConstitutiveLaw, const D: usize>(
     f: Matrix<D>,
     df: Matrix<D>,
 ) -> f64 {
-    use mpm_core::material::TangentBatch;
+    use mpm_core::material::{StateView, TangentBatch};
     assert!(law.has_stress_derivative());
     let (stress, _) = stress_of(law, f);
     let mut analytic = [Matrix::<D>::zeros()];
@@ -98,6 +98,7 @@ fn derivative_error<L: ConstitutiveLaw, const D: usize>(
         deformation_gradient: &[f],
         direction: &[df],
         stress: &[stress],
+        state: StateView { fields: [&[]; 8] },
         shared: [&[]; 4],
         stress_change: &mut analytic,
     });

@@ -49,6 +49,41 @@ impl EquationOfState {
         }
     }
 
+    /// The slopes of [`EquationOfState::pressure`]: (∂p/∂J, ∂p/∂energy) at the same
+    /// arguments, in closed form (the implicit mode's tangent).
+    pub fn pressure_slopes(&self, j: f64, density: f64, bulk: f64) -> (f64, f64) {
+        match *self {
+            EquationOfState::Linear => (-bulk * (1.0 - j.ln()) / (j * j), 0.0),
+            EquationOfState::MieGruneisen {
+                sound_speed,
+                slope,
+                gruneisen,
+            } => {
+                let rho_c2 = density * sound_speed * sound_speed;
+                let mu = 1.0 / j - 1.0;
+                let dmu_dj = -1.0 / (j * j);
+                let d_cold = if mu > 0.0 {
+                    let raw = 1.0 - (slope - 1.0) * mu;
+                    let (denominator, d_denominator) = if raw > 0.1 {
+                        (raw, -(slope - 1.0))
+                    } else {
+                        (0.1, 0.0)
+                    };
+                    let a = 1.0 - 0.5 * gruneisen;
+                    let numerator = mu * (1.0 + a * mu);
+                    let d_numerator = 1.0 + 2.0 * a * mu;
+                    rho_c2
+                        * (d_numerator / (denominator * denominator)
+                            - 2.0 * numerator * d_denominator
+                                / (denominator * denominator * denominator))
+                } else {
+                    rho_c2
+                };
+                (d_cold * dmu_dj, gruneisen)
+            }
+        }
+    }
+
     /// Bulk modulus at zero pressure, Pa.
     pub fn reference_bulk_modulus(&self, density: f64, bulk: f64) -> f64 {
         match *self {

@@ -13,7 +13,8 @@
 use crate::JohnsonCookParameters;
 use crate::damage::FailureMode;
 use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, lame_parameters,
+    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, TangentBatch,
+    lame_parameters,
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;
@@ -25,9 +26,9 @@ const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
 /// Johnson–Cook plasticity and damage (plane strain in 2D).
 #[derive(Clone, Debug)]
 pub struct JohnsonCook {
-    params: JohnsonCookParameters,
-    shear: f64,
-    bulk: f64,
+    pub(crate) params: JohnsonCookParameters,
+    pub(crate) shear: f64,
+    pub(crate) bulk: f64,
     fields: [FieldSpec; 5],
 }
 
@@ -65,7 +66,7 @@ impl JohnsonCook {
     /// Plastic strain increment that brings trial von Mises (Kirchhoff) stress `q_trial`
     /// back to the flow stress: solves q_trial − 3μΔε = σ_y(εₚ + Δε, Δε/dt, T) by Newton's
     /// method kept inside a bracket (the left side falls, the right side rises with Δε).
-    fn return_map(&self, q_trial: f64, strain: f64, thermal: f64, dt: f64) -> f64 {
+    pub(crate) fn return_map(&self, q_trial: f64, strain: f64, thermal: f64, dt: f64) -> f64 {
         let flow = &self.params.flow_stress;
         let three_mu = 3.0 * self.shear;
         let yield0 = flow.evaluate(strain, 0.0, thermal).0;
@@ -114,6 +115,15 @@ impl ConstitutiveLaw for JohnsonCook {
             name: "temperature",
             required: false,
         }]
+    }
+
+    fn has_stress_derivative(&self) -> bool {
+        true
+    }
+
+    /// The consistent tangent of this update (`tangent.rs`).
+    fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
+        crate::tangent::stress_derivative(self, batch);
     }
 
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {

@@ -7,6 +7,7 @@ mod damage;
 mod equation_of_state;
 mod flow_stress;
 mod johnson_cook;
+mod tangent;
 mod taylor_bar;
 
 pub use damage::{Damage, FailureMode};

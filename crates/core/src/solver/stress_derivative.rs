@@ -4,7 +4,7 @@
 //! mechanical part of F and of its change.
 
 use super::parallel::SharedSlice;
-use crate::material::{MAX_SHARED_READS, TangentBatch};
+use crate::material::{MAX_SHARED_READS, MAX_STATE_FIELDS, StateView, TangentBatch};
 use crate::math::Matrix;
 use crate::particles::Particles;
 use crate::physics::FREE_STRAIN;
@@ -29,10 +29,12 @@ pub(crate) struct DerivativeScratch<const D: usize> {
     direction: Vec<Matrix<D>>,
 }
 
-/// Writes dσ_p = ∂σ/∂F : `direction[p]` at the particles' current F and stress into `out`.
+/// Writes dσ_p = ∂σ/∂F : `direction[p]` at the particles' current F and stress into `out`;
+/// `state` is each group's material state (per field) that the stress update started from.
 /// Only for particles whose laws all have the derivative ([`all_analytic`]).
 pub(crate) fn stress_derivative<const D: usize>(
     particles: &Particles<D>,
+    state: &[Vec<Vec<f64>>],
     direction: &[Matrix<D>],
     dt: f64,
     scratch: &mut DerivativeScratch<D>,
@@ -61,9 +63,13 @@ pub(crate) fn stress_derivative<const D: usize>(
             None => (&particles.deformation_gradient, direction),
         };
     let out_slice = SharedSlice::new(out);
-    for group in &particles.groups {
+    for (g, group) in particles.groups.iter().enumerate() {
         let range = group.range.clone();
         let material = group.material.clone();
+        let specs = material.state_fields();
+        let saved: &[Vec<f64>] = state.get(g).map_or(&[], |s| s.as_slice());
+        let comps: [usize; MAX_STATE_FIELDS] =
+            std::array::from_fn(|k| specs.get(k).map_or(0, |s| s.components));
         let reads: [Option<&[f64]>; MAX_SHARED_READS] = std::array::from_fn(|k| {
             material
                 .shared_reads()
@@ -75,11 +81,18 @@ pub(crate) fn stress_derivative<const D: usize>(
             .for_each(|b| {
                 let start = range.start + b * BATCH;
                 let global = start..(start + BATCH).min(range.end);
+                let local = global.start - range.start..global.end - range.start;
+                let fields = std::array::from_fn(|k| {
+                    saved.get(k).map_or(&[][..], |f| {
+                        &f[local.start * comps[k]..local.end * comps[k]]
+                    })
+                });
                 let batch = TangentBatch {
                     dt,
                     deformation_gradient: &kinematic[global.clone()],
                     direction: &direction[global.clone()],
                     stress: &particles.stress[global.clone()],
+                    state: StateView { fields },
                     shared: std::array::from_fn(|k| {
                         reads[k].map_or(&[][..], |f| &f[global.clone()])
                     }),

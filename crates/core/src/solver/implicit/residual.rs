@@ -378,6 +378,7 @@ fn tangent_product_analytic<const D: usize, K: Kernel>(
     }
     stress_derivative(
         &sim.particles,
+        &work.state_n,
         &work.direction,
         dt,
         &mut work.derivative_scratch,
