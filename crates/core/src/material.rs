@@ -138,6 +138,11 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn shared_reads(&self) -> &[SharedRead] {
         &[]
     }
+    /// Whether the law writes the plastic work it dissipates ([`StressBatch::plastic_work`]);
+    /// the core then always allocates that field, so the energy ledger counts it.
+    fn reports_plastic_work(&self) -> bool {
+        false
+    }
     /// Computes the Cauchy stress of every particle in the batch and reports the batch's
     /// strain energy and largest wave speed.
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats;
@@ -166,6 +171,8 @@ pub trait Material: Send + Sync {
     fn needs_velocity_gradient(&self) -> bool;
     /// See [`ConstitutiveLaw::shared_reads`].
     fn shared_reads(&self) -> &[SharedRead];
+    /// See [`ConstitutiveLaw::reports_plastic_work`].
+    fn reports_plastic_work(&self) -> bool;
     /// 2D (plane strain) batch update.
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats;
     /// 3D batch update.
@@ -190,6 +197,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn shared_reads(&self) -> &[SharedRead] {
         ConstitutiveLaw::shared_reads(self)
+    }
+    fn reports_plastic_work(&self) -> bool {
+        ConstitutiveLaw::reports_plastic_work(self)
     }
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats {
         self.update_stress::<2>(batch)

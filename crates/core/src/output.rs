@@ -33,6 +33,8 @@ pub const FRAME_DIAGNOSTICS: &[&str] = &[
     "min_det_f",
     "momentum",
     "boundary_work",
+    "dissipated_energy",
+    "energy_error",
 ];
 
 /// Static facts about a run, given to the writer before the first frame.
@@ -154,14 +156,17 @@ pub struct Metrics {
     pub bytes_per_particle: f64,
     /// Grid storage, bytes.
     pub grid_bytes: usize,
-    /// Final change of the total energy net of `boundary_work`, relative to the largest
-    /// mechanical (kinetic + strain) energy seen; negative: dissipated (by the method,
-    /// impacts, friction or damping).
+    /// The method's energy error at the end: the change of the total (kinetic + strain +
+    /// gravity) energy less what the `energy_ledger` explains (work done on the bodies,
+    /// damping, plastic, friction and cohesive dissipation), relative to the largest
+    /// mechanical (kinetic + strain) energy seen; negative: the method lost energy
+    /// (numerical dissipation, impacts against fixed surfaces, wall friction).
     pub energy_drift: f64,
     /// Work done on the body by moving obstacles and by changing free strains (thermal
-    /// expansion, shrinkage) (J; J/m in 2D); fixed walls and damping do none (what they
-    /// take away is dissipation).
+    /// expansion, shrinkage) (J; J/m in 2D): `energy_ledger.boundaries + free_strain`.
     pub boundary_work: f64,
+    /// Work and dissipation by cause over the run.
+    pub energy_ledger: crate::energy_ledger::EnergyLedger,
     /// Largest |energy drift| over the run.
     pub max_energy_drift: f64,
     /// Error against the scene's reference, when it has one.

@@ -121,6 +121,10 @@ impl ConstitutiveLaw for JohnsonCook {
         true
     }
 
+    fn reports_plastic_work(&self) -> bool {
+        true
+    }
+
     /// The consistent tangent of this update (`tangent.rs`).
     fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
         crate::tangent::stress_derivative(self, batch);

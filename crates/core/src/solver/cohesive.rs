@@ -32,7 +32,7 @@
 //!   the law's friction coefficient.
 //! - Energy: the work of the capped tractions on the opening, `Σ J·Δδ / dt`, is dissipated
 //!   (the softening law unloads rigidly, so none of it is stored); it enters the energy
-//!   balance like friction work (`boundary_work`) and the run reports it as
+//!   ledger like friction work (`EnergyLedger::cohesive`) and the run reports it as
 //!   `contact.cohesive_dissipation` (under compression it includes the friction part of
 //!   the shear cap while the node softens; Coulomb friction of debonded nodes is
 //!   `contact.friction_work`).

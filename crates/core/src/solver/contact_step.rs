@@ -1,8 +1,8 @@
 //! The explicit USL step of a scene with contact between bodies: P2G into every grid
 //! velocity field, each field's own grid update (walls and obstacles act on every field),
 //! the contact laws where fields meet (`contact`), then G2P from each particle's own field.
-//! The work of friction (and stick) against the slip enters the energy balance as work done
-//! on the bodies (`boundary_work`), and the run reports it (`contact.friction_work`, the
+//! The work of friction (and stick) against the slip enters the energy ledger
+//! (`EnergyLedger::friction`), and the run reports it (`contact.friction_work`, the
 //! energy friction dissipated so far), the largest number of contact nodes and the times
 //! contact starts and ends (table `contact`). The normal corrections of frictionless
 //! contact are left out (see `ContactStats::work`): their loss shows as a fall of the
@@ -47,7 +47,9 @@ where
             time,
         };
         for grid in &mut fields.grids {
-            self.boundary_work += update_grid(grid, &self.boundaries, grid_params);
+            let work = update_grid(grid, &self.boundaries, grid_params);
+            self.ledger.boundaries += work.boundaries;
+            self.ledger.damping += work.damping;
         }
         if let Some(cohesive) = fields.cohesive.as_mut() {
             let laws = &fields.laws;
@@ -69,7 +71,7 @@ where
         );
         if let Some(cohesive) = fields.cohesive.as_mut() {
             // The bonds dissipate energy: the balance subtracts it as work on the bodies.
-            self.boundary_work -= stats.cohesive.dissipated;
+            self.ledger.cohesive += stats.cohesive.dissipated;
             cohesive.record(
                 stats.cohesive,
                 self.time + dt,
@@ -78,7 +80,7 @@ where
             );
         }
         // Friction does work on the bodies: the energy balance subtracts it.
-        self.boundary_work += stats.friction_work;
+        self.ledger.friction -= stats.friction_work;
         fields.dissipated -= stats.friction_work;
         let touching = stats.nodes > 0;
         if touching != fields.touching {

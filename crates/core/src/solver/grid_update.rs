@@ -25,14 +25,24 @@ pub struct GridParams<const D: usize> {
     pub time: f64,
 }
 
+/// The energy a grid update exchanged with the bodies, J (J/m in 2D).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GridWork {
+    /// Work moving obstacles did on the nodes (fixed walls do none: what they take away
+    /// is the method's impact loss or wall friction).
+    pub boundaries: f64,
+    /// Kinetic energy the velocity damping removed.
+    pub damping: f64,
+}
+
 /// Turns nodal momentum into velocity in place and applies forces and boundary conditions.
-/// Returns the work moving obstacles did on the grid, for the energy balance (damping and
-/// fixed walls only dissipate; that shows as a fall of the total energy).
+/// Returns the work moving obstacles did and the energy damping removed, for the energy
+/// ledger.
 pub fn update_grid<const D: usize>(
     grid: &mut Grid<D>,
     boundaries: &Boundaries<D>,
     params: GridParams<D>,
-) -> f64 {
+) -> GridWork {
     const CHUNK: usize = 4096;
     boundaries.fold_stick_walls(grid);
     let damping = (-params.damping * params.dt).exp();
@@ -50,7 +60,7 @@ pub fn update_grid<const D: usize>(
         .enumerate()
         .map(|(chunk, velocities)| {
             let start = chunk * CHUNK;
-            let mut work = 0.0;
+            let (mut work, mut damped) = (0.0, 0.0);
             for (k, v) in velocities.iter_mut().enumerate() {
                 let i = start + k;
                 let m = mass[i];
@@ -66,18 +76,31 @@ pub fn update_grid<const D: usize>(
                 if params.forces && params.flip {
                     *v += force[i] * (params.dt / m);
                 }
-                if params.forces {
+                let damps = params.forces && damping < 1.0;
+                if damps {
                     *v *= damping;
                 }
+                let mut surface_work = 0.0;
                 if !boundaries.is_empty() {
                     let ijk = node_coords(&stride, i);
                     let x = node_position(&origin, dx, ijk);
-                    work += boundaries.apply(ijk, &x, params.time, m, v);
+                    surface_work = boundaries.apply(ijk, &x, params.time, m, v);
+                    work += surface_work;
+                }
+                if damps && surface_work == 0.0 {
+                    // What damping took from the velocity the node keeps: fixed walls act
+                    // linearly, so the wall-constrained part of the damped velocity (a
+                    // clamp's reaction, say) was never motion and is not booked; where a
+                    // moving obstacle set the velocity, its work term books the change.
+                    damped += 0.5 * m * v.norm_squared() * (1.0 / (damping * damping) - 1.0);
                 }
             }
-            work
+            (work, damped)
         })
-        .sum();
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
     boundaries.mirror_stick_walls(grid);
-    work
+    GridWork {
+        boundaries: work.0,
+        damping: work.1,
+    }
 }

@@ -77,6 +77,8 @@ where
         }
         self.relax_time = None;
         self.settings.damping = saved_damping;
+        // The relaxation's damping takes the rest of the kinetic energy with it.
+        self.ledger.damping += self.kinematics.kinetic_energy;
         self.particles.velocity.fill(Vector::<D>::zeros());
         self.particles.affine.fill(Matrix::<D>::zeros());
         let stats = measure(&self.particles, self.settings.gravity);

@@ -123,7 +123,9 @@ where
             k.max_speed,
             k.min_det_f,
             k.momentum.norm(),
-            self.boundary_work,
+            self.ledger.boundaries + self.ledger.free_strain,
+            self.ledger.dissipated(),
+            self.total_energy() - self.ledger.net_input() - self.energy0,
         ];
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {
@@ -213,7 +215,7 @@ where
         self.write_frame(sink, frame, 0.0)?;
         self.observe_reference(false);
         frame += 1;
-        let energy0 = self.total_energy();
+        let energy0 = self.energy0;
         let mut mechanical_max = self.kinematics.kinetic_energy + self.stresses.batch.strain_energy;
         let mut drift = 0.0f64;
         let mut max_drift = 0.0f64;
@@ -271,8 +273,9 @@ where
             let k = &self.kinematics;
             let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
             mechanical_max = mechanical_max.max(mechanical);
-            // Energy balance: what the body gained beyond the work done on it from outside.
-            let energy = self.total_energy() - self.boundary_work;
+            // Energy balance: what the bodies gained beyond the work done on them from outside
+            // and the energy physical causes dissipated (the ledger): the method's error.
+            let energy = self.total_energy() - self.ledger.net_input();
             drift = if mechanical_max > 0.0 {
                 (energy - energy0) / mechanical_max
             } else {
@@ -336,7 +339,8 @@ where
             min_det_f: min_det,
             max_speed,
             max_momentum,
-            boundary_work: self.boundary_work,
+            boundary_work: self.ledger.boundaries + self.ledger.free_strain,
+            energy_ledger: self.ledger,
             frames: frame,
             threads: rayon::current_num_threads(),
             diagnostic,

@@ -69,6 +69,16 @@ where
                 particles.shared.add(spec, n);
             }
         }
+        if !particles.shared.contains(crate::physics::PLASTIC_WORK)
+            && v.materials.values().any(|m| m.reports_plastic_work())
+        {
+            // The energy ledger counts plastic work also without a physics that heats with it.
+            let spec = crate::physics::SharedFieldSpec {
+                name: crate::physics::PLASTIC_WORK,
+                initial: 0.0,
+            };
+            particles.shared.add(spec, n);
+        }
         if s.contact.as_ref().is_some_and(|c| c.has_cohesive())
             && s.output.fields.iter().any(|f| f == INTERFACE_DAMAGE)
         {
@@ -224,7 +234,8 @@ where
             steps: 0,
             kinematics: KinematicStats::default(),
             stresses: StressStats::default(),
-            boundary_work: 0.0,
+            ledger: Default::default(),
+            energy0: 0.0,
             volume_average: (s.solver.anti_locking == crate::scene::AntiLocking::Fbar)
                 .then(|| VolumeAverage::new(grid_nodes)),
             physics,

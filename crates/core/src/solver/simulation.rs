@@ -4,7 +4,7 @@
 use super::DimensionDispatch;
 use super::binning::{Reorder, SlabBins};
 use super::grid_to_particle::{G2pParams, grid_to_particle, measure};
-use super::grid_update::{GridParams, update_grid};
+use super::grid_update::{GridParams, GridWork, update_grid};
 use super::interpolation::build_interpolation;
 use super::mode::StepMode;
 use super::multi_field::MultiField;
@@ -14,6 +14,7 @@ use super::stress_update::{StressScratch, StressStats, update_stress};
 use super::timestep::stable_time_step;
 use super::volume_averaging::VolumeAverage;
 use crate::boundary::Boundaries;
+use crate::energy_ledger::EnergyLedger;
 use crate::grid::Grid;
 use crate::kernels::Kernel;
 use crate::material::Material;
@@ -73,7 +74,10 @@ pub struct Simulation<const D: usize, K: Kernel> {
     pub(super) steps: u64,
     pub(super) kinematics: KinematicStats<D>,
     pub(super) stresses: StressStats,
-    pub(super) boundary_work: f64,
+    /// Work done on the bodies and energy dissipated, by cause, since the run started.
+    pub(super) ledger: EnergyLedger,
+    /// Total (kinetic + strain + gravity) energy at the start of the run.
+    pub(super) energy0: f64,
     pub(super) volume_average: Option<VolumeAverage>,
     pub(super) physics: Vec<PhysicsSlot>,
     pub(super) interpolation: Interpolation<D>,
@@ -119,9 +123,9 @@ where
         self.kinematics.momentum
     }
 
-    /// Work done on the body by moving obstacles so far.
-    pub fn boundary_work(&self) -> f64 {
-        self.boundary_work
+    /// Work done on the bodies and energy dissipated so far, by cause.
+    pub fn energy_ledger(&self) -> EnergyLedger {
+        self.ledger
     }
 
     /// Kinetic + strain + gravitational energy after the last step.
@@ -224,7 +228,8 @@ where
     pub(super) fn update_stresses(&mut self, dt: f64) {
         if self.settings.mechanics != Mechanics::Off {
             self.stresses = update_stress(&mut self.particles, dt, &mut self.stress_scratch);
-            self.boundary_work += self.stresses.free_strain_work;
+            self.ledger.free_strain += self.stresses.free_strain_work;
+            self.ledger.plastic += self.stresses.plastic_work;
         }
     }
 
@@ -248,11 +253,12 @@ where
     pub(super) fn grid_update(&mut self, dt: f64, forces: bool) {
         let work = self.grid_update_work(dt, forces);
         if forces {
-            self.boundary_work += work;
+            self.ledger.boundaries += work.boundaries;
+            self.ledger.damping += work.damping;
         }
     }
 
-    pub(super) fn grid_update_work(&mut self, dt: f64, forces: bool) -> f64 {
+    pub(super) fn grid_update_work(&mut self, dt: f64, forces: bool) -> GridWork {
         let params = GridParams {
             dt,
             forces,
@@ -323,7 +329,8 @@ where
             self.physics_dt = self.compute_physics_dt();
         }
         self.update_stresses(0.0);
-        self.boundary_work = 0.0;
+        self.ledger = EnergyLedger::default();
         self.kinematics = measure(&self.particles, self.settings.gravity);
+        self.energy0 = self.total_energy();
     }
 }

@@ -22,6 +22,8 @@ pub(crate) struct StressStats {
     /// Work the change of free strain did on the stress in this update (it enters the energy
     /// balance like work done from outside), J (J/m in 2D).
     pub free_strain_work: f64,
+    /// Plastic work the materials reported in this update, J (J/m in 2D).
+    pub plastic_work: f64,
 }
 
 /// Buffers of the stress update, allocated only when the scene has a free strain.
@@ -166,17 +168,24 @@ where
                 StressStats {
                     batch: batch_stats,
                     non_finite,
-                    free_strain_work: 0.0,
+                    ..StressStats::default()
                 }
             })
             .reduce(StressStats::default, |a, b| StressStats {
                 batch: a.batch.merge(b.batch),
                 non_finite: ParticleFault::first(a.non_finite, b.non_finite),
-                free_strain_work: 0.0,
+                ..StressStats::default()
             });
         scratch.group_wave_speed[g] = stats.batch.max_wave_speed;
         total.batch = total.batch.merge(stats.batch);
         total.non_finite = ParticleFault::first(total.non_finite, stats.non_finite);
+    }
+    if has_work {
+        total.plastic_work = plastic_work
+            .par_iter()
+            .zip(volume0.par_iter())
+            .map(|(w, v)| w * v)
+            .sum();
     }
     particles.shared.restore(PLASTIC_WORK, plastic_work);
     total

@@ -30,7 +30,8 @@ pub(super) fn update_particles<const D: usize, K: Kernel>(
 {
     if let Some(e) = result.last {
         sim.stresses = e.stress;
-        sim.boundary_work += e.stress.free_strain_work;
+        sim.ledger.free_strain += e.stress.free_strain_work;
+        sim.ledger.plastic += e.stress.plastic_work;
     }
     mirror(work, du);
     if let Some(c) = inertia {

@@ -1,0 +1,37 @@
+//! The energy ledger of a run: the work done on the bodies from outside and the energy
+//! dissipated by each physical cause, kept separately so that what remains of the energy
+//! balance is the method's own error, not damping or plasticity.
+
+use serde::Serialize;
+
+/// Work and dissipation since the start of a run, by cause, J (J/m in 2D). Each entry is
+/// the energy that entered (work) or left (dissipated) the bodies' mechanical energy
+/// (kinetic + strain + gravity potential).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct EnergyLedger {
+    /// Work done by moving obstacles (and walls) on the bodies, m Δv · v_surface at their
+    /// nodes; fixed surfaces do none.
+    pub boundaries: f64,
+    /// Work of changing free strains (thermal expansion, cure shrinkage) against the stress.
+    pub free_strain: f64,
+    /// Kinetic energy removed by the grid velocity damping of `solver.damping`.
+    pub damping: f64,
+    /// Plastic work the materials reported (dissipated into heat).
+    pub plastic: f64,
+    /// Work of Coulomb friction between bodies in contact (dissipated).
+    pub friction: f64,
+    /// Energy the cohesive interfaces dissipated as they softened.
+    pub cohesive: f64,
+}
+
+impl EnergyLedger {
+    /// Net energy the ledger explains: work done on the bodies less all dissipation.
+    pub fn net_input(&self) -> f64 {
+        self.boundaries + self.free_strain - self.dissipated()
+    }
+
+    /// Everything dissipated by a physical cause.
+    pub fn dissipated(&self) -> f64 {
+        self.damping + self.plastic + self.friction + self.cohesive
+    }
+}
