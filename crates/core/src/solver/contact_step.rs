@@ -12,7 +12,7 @@
 
 use super::DimensionDispatch;
 use super::contact::{FieldData, apply_contact};
-use super::grid_update::{GridParams, update_grid};
+use super::grid_update::{GridParams, damped_energy, update_grid};
 use super::particle_to_grid::{ForceTerm, P2gParams};
 use super::simulation::Simulation;
 use crate::kernels::Kernel;
@@ -47,9 +47,9 @@ where
             time,
         };
         for grid in &mut fields.grids {
+            // Damping is booked after the contact laws (below).
             let work = update_grid(grid, &self.boundaries, grid_params);
             self.ledger.boundaries += work.boundaries;
-            self.ledger.damping += work.damping;
         }
         if let Some(cohesive) = fields.cohesive.as_mut() {
             let laws = &fields.laws;
@@ -90,6 +90,10 @@ where
                 .rows
                 .push(row);
             fields.touching = touching;
+        }
+        let damping = (-self.settings.damping * dt).exp();
+        for grid in &fields.grids {
+            self.ledger.damping += damped_energy(grid, damping);
         }
         self.report
             .record_max("contact.friction_work", fields.dissipated);

@@ -33,6 +33,9 @@ pub(crate) struct StressScratch<const D: usize> {
     mechanical: Vec<Matrix<D>>,
     /// Free strain at the last update.
     applied: Vec<f64>,
+    /// Each particle's lever for the free-strain work of this update, Δ(free strain)·J·V₀:
+    /// the work is −tr σ times it, with σ averaged over the update (trapezoid).
+    lever: Vec<f64>,
     /// Largest wave speed of each material group at the last update (implicit mechanics
     /// scales its preconditioner with it).
     pub group_wave_speed: Vec<f64>,
@@ -75,18 +78,20 @@ where
     if let Some(fs) = free_strain {
         scratch.mechanical.resize(n, Matrix::<D>::identity());
         scratch.applied.resize(n, 0.0);
+        scratch.lever.resize(n, 0.0);
         free_strain_work = scratch
             .mechanical
             .par_iter_mut()
             .zip(scratch.applied.par_iter_mut())
+            .zip(scratch.lever.par_iter_mut())
             .enumerate()
-            .map(|(p, (fm, applied))| {
+            .map(|(p, ((fm, applied), lever))| {
                 let f = &deformation_gradient[p];
                 *fm = f * (1.0 / (1.0 + fs[p]));
                 let trace: f64 = (0..D).map(|d| stress[p][(d, d)]).sum();
-                let work = -trace * (fs[p] - *applied) * crate::math::determinant(f) * volume0[p];
+                *lever = (fs[p] - *applied) * crate::math::determinant(f) * volume0[p];
                 *applied = fs[p];
-                work
+                -0.5 * trace * *lever
             })
             .sum();
     }
@@ -179,6 +184,14 @@ where
         scratch.group_wave_speed[g] = stats.batch.max_wave_speed;
         total.batch = total.batch.merge(stats.batch);
         total.non_finite = ParticleFault::first(total.non_finite, stats.non_finite);
+    }
+    if free_strain.is_some() {
+        // The other half of the trapezoid: the stress after the update.
+        total.free_strain_work += stress
+            .par_iter()
+            .zip(scratch.lever.par_iter())
+            .map(|(s, lever)| -0.5 * (0..D).map(|d| s[(d, d)]).sum::<f64>() * lever)
+            .sum::<f64>();
     }
     if has_work {
         total.plastic_work = plastic_work
