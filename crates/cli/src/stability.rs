@@ -33,6 +33,15 @@ pub struct Case {
     pub expected: Expected,
 }
 
+impl Case {
+    /// Whether the case's transfer keeps angular momentum (APIC, the default).
+    fn keeps_angular_momentum(&self) -> bool {
+        self.scene["solver"]["transfer"]
+            .as_str()
+            .is_none_or(|t| t == "apic")
+    }
+}
+
 /// The result of one case.
 #[derive(Debug, Serialize)]
 pub struct CaseResult {
@@ -48,8 +57,13 @@ pub struct CaseResult {
     pub steps: u64,
     /// Wall seconds (setup excluded).
     pub wall_seconds: f64,
-    /// Energy drift (see the README).
+    /// Energy drift (see the README): the method's energy error, net of the energy ledger.
     pub energy_drift: f64,
+    /// Relative change of the linear momentum, where nothing acts from outside.
+    pub momentum_change: Option<f64>,
+    /// Relative change of the angular momentum, where nothing acts from outside and the
+    /// run can measure it.
+    pub angular_momentum_change: Option<f64>,
     /// Smallest det F seen.
     pub min_det_f: f64,
     /// Largest particle speed seen.
@@ -504,6 +518,8 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
         steps: 0,
         wall_seconds: 0.0,
         energy_drift: 0.0,
+        momentum_change: None,
+        angular_momentum_change: None,
         min_det_f: f64::NAN,
         max_speed: f64::NAN,
         note: String::new(),
@@ -536,6 +552,11 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
     result.wall_seconds = start.elapsed().as_secs_f64();
     result.steps = metrics.steps;
     result.energy_drift = metrics.energy_drift;
+    let kept = &metrics.conservation;
+    if !kept.external_forces {
+        result.momentum_change = Some(kept.momentum_change);
+        result.angular_momentum_change = kept.angular_momentum_change;
+    }
     result.min_det_f = metrics.min_det_f;
     result.max_speed = metrics.max_speed;
     result.outcome = match metrics.outcome {
@@ -556,17 +577,60 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
         Expected::Refused => "refused",
     };
     result.pass = result.outcome == expected;
+    if result.outcome == "finished" {
+        let wrong = physics_failures(&result, case.keeps_angular_momentum());
+        if !wrong.is_empty() {
+            result.pass = false;
+            result.note = wrong.join("; ");
+        }
+    }
     result
+}
+
+/// Most a finished case's energy may grow (net of the ledger), relative to its largest
+/// mechanical energy: the method may lose energy, but growth is the sign of instability.
+pub const MAX_ENERGY_GROWTH: f64 = 0.02;
+/// Most a finished case's momentum may change where nothing acts from outside: round-off.
+pub const MAX_MOMENTUM_CHANGE: f64 = 1e-10;
+
+/// What a finished case got wrong physically: energy growth, or momentum (and, where the
+/// transfer keeps it, angular momentum) not kept where nothing acts from outside.
+fn physics_failures(r: &CaseResult, keeps_angular: bool) -> Vec<String> {
+    let mut wrong = Vec::new();
+    if r.energy_drift > MAX_ENERGY_GROWTH {
+        wrong.push(format!(
+            "energy grew by {:.2e} of the largest mechanical energy (bound {MAX_ENERGY_GROWTH})",
+            r.energy_drift
+        ));
+    }
+    if let Some(change) = r
+        .momentum_change
+        .filter(|c| c.is_nan() || *c > MAX_MOMENTUM_CHANGE)
+    {
+        wrong.push(format!(
+            "momentum changed by {change:.2e} (bound {MAX_MOMENTUM_CHANGE:e})"
+        ));
+    }
+    if keeps_angular
+        && let Some(change) = r
+            .angular_momentum_change
+            .filter(|c| c.is_nan() || *c > MAX_MOMENTUM_CHANGE)
+    {
+        wrong.push(format!(
+            "angular momentum changed by {change:.2e} (bound {MAX_MOMENTUM_CHANGE:e})"
+        ));
+    }
+    wrong
 }
 
 /// The results as a Markdown table.
 pub fn table(results: &[CaseResult]) -> String {
     let mut out = String::from(
-        "| case | expected | outcome | steps | wall s | energy drift | worst det F | max speed | note |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| case | expected | outcome | steps | wall s | energy drift | momentum change | angular momentum change | worst det F | max speed | note |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in results {
         out += &format!(
-            "| {} | {:?} | {}{} | {} | {:.2} | {:+.2e} | {:.3} | {:.3} | {} |\n",
+            "| {} | {:?} | {}{} | {} | {:.2} | {:+.2e} | {} | {} | {:.3} | {:.3} | {} |\n",
             r.name,
             r.expected,
             r.outcome,
@@ -574,10 +638,55 @@ pub fn table(results: &[CaseResult]) -> String {
             r.steps,
             r.wall_seconds,
             r.energy_drift,
+            r.momentum_change.map_or("—".into(), |c| format!("{c:.1e}")),
+            r.angular_momentum_change
+                .map_or("—".into(), |c| format!("{c:.1e}")),
             r.min_det_f,
             r.max_speed,
             r.note.chars().take(90).collect::<String>()
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn finished(drift: f64, momentum: Option<f64>, angular: Option<f64>) -> CaseResult {
+        CaseResult {
+            name: "case".into(),
+            expected: Expected::Finished,
+            outcome: "finished".into(),
+            pass: true,
+            steps: 1,
+            wall_seconds: 0.0,
+            energy_drift: drift,
+            momentum_change: momentum,
+            angular_momentum_change: angular,
+            min_det_f: 1.0,
+            max_speed: 0.0,
+            note: String::new(),
+        }
+    }
+
+    #[test]
+    fn a_finished_case_with_wrong_physics_fails() {
+        assert!(physics_failures(&finished(-0.5, Some(1e-15), Some(1e-15)), true).is_empty());
+        assert_eq!(physics_failures(&finished(0.05, None, None), true).len(), 1);
+        assert_eq!(
+            physics_failures(&finished(0.0, Some(1e-6), None), true).len(),
+            1
+        );
+        assert_eq!(
+            physics_failures(&finished(0.0, Some(0.0), Some(1e-3)), true).len(),
+            1
+        );
+        // PIC or FLIP need not keep angular momentum.
+        assert!(physics_failures(&finished(0.0, Some(0.0), Some(1e-3)), false).is_empty());
+        assert_eq!(
+            physics_failures(&finished(0.0, Some(f64::NAN), None), true).len(),
+            1
+        );
+    }
 }

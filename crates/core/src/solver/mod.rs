@@ -15,6 +15,7 @@
 
 mod binning;
 mod cohesive;
+mod conservation;
 mod contact;
 mod contact_step;
 mod explicit;

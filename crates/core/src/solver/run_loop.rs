@@ -1,6 +1,7 @@
 //! The run loop every mode shares: the time step choice (adaptive or fixed, landing on
 //! output times), output frames, the reference, the energy balance and the stop checks.
 
+use super::conservation::{Tracker, totals};
 use super::multi_field::MultiField;
 use super::output_staging::fill_staging;
 use super::simulation::Simulation;
@@ -13,6 +14,7 @@ use crate::output::{
     Diagnostic, FRAME_DIAGNOSTICS, Frame, Metrics, Outcome, OutputError, OutputSink, RunInfo,
 };
 use crate::reference::Frame as ReferenceFrame;
+use crate::scene::{Mechanics, Transfer};
 use std::time::Instant;
 
 impl<const D: usize, K: Kernel> Simulation<D, K>
@@ -215,6 +217,10 @@ where
         self.write_frame(sink, frame, 0.0)?;
         self.observe_reference(false);
         frame += 1;
+        let affine_inertia = K::APIC_INERTIA
+            .filter(|_| self.settings.transfer == Transfer::Apic)
+            .map(|coef| coef * self.grid.dx * self.grid.dx);
+        let mut conservation = Tracker::new(totals(&self.particles, affine_inertia));
         let energy0 = self.energy0;
         let mut mechanical_max = self.kinematics.kinetic_energy + self.stresses.batch.strain_energy;
         let mut drift = 0.0f64;
@@ -296,6 +302,7 @@ where
                 let last = self.time >= end_time - eps;
                 self.write_frame(sink, frame, dt)?;
                 self.observe_reference(last);
+                conservation.observe(totals(&self.particles, affine_inertia));
                 frame += 1;
             }
             let progress = Progress {
@@ -341,6 +348,15 @@ where
             max_momentum,
             boundary_work: self.ledger.boundaries + self.ledger.free_strain,
             energy_ledger: self.ledger,
+            conservation: conservation.report(
+                self.settings.gravity.norm() > 0.0
+                    || !self.boundaries.is_empty()
+                    || self.settings.damping > 0.0
+                    || self.settings.mechanics != Mechanics::Dynamic,
+                // APIC's affine part is counted with a B-spline's constant inertia; with
+                // GIMP or linear shape functions it is not stored, so not measured.
+                self.settings.transfer != Transfer::Apic || affine_inertia.is_some(),
+            ),
             frames: frame,
             threads: rayon::current_num_threads(),
             diagnostic,
