@@ -384,6 +384,45 @@ impl<const D: usize> Boundaries<D> {
         });
     }
 
+    /// Folds the image of a body across each symmetry wall into its per-node particle volume
+    /// Σ V w and mass gradient Σ m ∇w (the contact's gap test and normal): the ghosts' onto
+    /// their mirror nodes, as [`Self::fold_stick_walls`] folds mass, and on the symmetry
+    /// plane itself the image's own share (volume doubled, normal gradient cancelled), so a
+    /// half model's contact sees what the full model's does. `nodes` and `stride` are the
+    /// grid's.
+    pub fn fold_symmetry_images(
+        &self,
+        nodes: [usize; 3],
+        stride: [usize; 3],
+        volume: &mut [f64],
+        gradient: &mut [Vector<D>],
+    ) {
+        let index = |ijk: [usize; 3]| ijk[0] * stride[0] + ijk[1] * stride[1] + ijk[2];
+        for wall in self.walls.iter().filter(|w| w.contact == Contact::Symmetry) {
+            let a = wall.axis;
+            for_each_node_in_plane(nodes, a, wall.surface, |ijk| {
+                let i = index(ijk);
+                volume[i] *= 2.0;
+                gradient[i] *= 2.0;
+                gradient[i][a] = 0.0;
+            });
+        }
+        self.mirrored_wall_planes(nodes, |a, ghost, front, symmetry| {
+            if !symmetry {
+                return;
+            }
+            for_each_node_in_plane(nodes, a, ghost, |ijk_ghost| {
+                let mut ijk_front = ijk_ghost;
+                ijk_front[a] = front;
+                let (g, f) = (index(ijk_ghost), index(ijk_front));
+                volume[f] += volume[g];
+                let mut image = gradient[g];
+                image[a] = -image[a];
+                gradient[f] += image;
+            });
+        });
+    }
+
     /// Gives the ghost nodes behind every stick wall the mirror image of the velocity in
     /// front of it, negated: v(s − k) = −v(s + k); behind a symmetry wall, reflected (normal
     /// component negated). The velocity field is then odd (or mirror-symmetric) about the

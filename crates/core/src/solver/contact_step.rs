@@ -38,6 +38,14 @@ where
             gravity: self.settings.gravity,
         };
         fields.scatter::<K>(&mut self.grid, &self.particles, &self.bins, params);
+        for (volume, gradient) in fields.volume.iter_mut().zip(&mut fields.gradient) {
+            self.boundaries.fold_symmetry_images(
+                self.grid.nodes,
+                self.grid.stride,
+                volume,
+                gradient,
+            );
+        }
         let time = self.relax_time.unwrap_or(self.time + dt);
         let grid_params = GridParams {
             dt,
@@ -92,7 +100,10 @@ where
             fields.touching = touching;
         }
         let damping = (-self.settings.damping * dt).exp();
-        for grid in &fields.grids {
+        for grid in &mut fields.grids {
+            // The laws changed velocities in front of stick and symmetry walls: the ghosts
+            // behind them take the new mirror images (G2P reads them).
+            self.boundaries.mirror_stick_walls(grid);
             self.ledger.damping += damped_energy(grid, damping);
         }
         self.report
