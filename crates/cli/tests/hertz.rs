@@ -6,8 +6,7 @@
 mod common;
 
 use common::*;
-use mpm_core::output::{Frame, Metrics, Outcome, OutputError, OutputSink, RunInfo};
-use mpm_core::solver::{Control, Progress, run_scene};
+use mpm_core::output::{Metrics, Outcome};
 use std::f64::consts::PI;
 
 /// Cylinder radius and the moduli of the example.
@@ -18,40 +17,8 @@ const NU: f64 = 0.3;
 /// Particle rows under the block's surface whose stress gives the half-width.
 const ROWS: usize = 2;
 
-/// Positions, stresses and volumes of every frame, and the energy diagnostics.
-#[derive(Default)]
-struct Frames {
-    index: [usize; 3],
-    times: Vec<f64>,
-    x: Vec<Vec<f64>>,
-    stress: Vec<Vec<f64>>,
-    volume: Vec<Vec<f64>>,
-    diagnostics: Vec<Vec<f64>>,
-}
-
-impl OutputSink for Frames {
-    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
-        for (k, name) in ["x", "stress", "volume"].iter().enumerate() {
-            self.index[k] = info
-                .fields
-                .iter()
-                .position(|f| f.name == *name)
-                .ok_or_else(|| OutputError(format!("the scene must write {name}")))?;
-        }
-        Ok(())
-    }
-    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
-        self.times.push(frame.time);
-        self.x.push(frame.values[self.index[0]].clone());
-        self.stress.push(frame.values[self.index[1]].clone());
-        self.volume.push(frame.values[self.index[2]].clone());
-        self.diagnostics.push(frame.diagnostics.to_vec());
-        Ok(())
-    }
-    fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
-        Ok(())
-    }
-}
+/// The fields every frame keeps: positions, stresses and volumes (and the diagnostics).
+const FIELDS: &[&str] = &["x", "stress", "volume"];
 
 /// Plane-strain contact modulus: 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂.
 fn contact_modulus() -> f64 {
@@ -151,9 +118,13 @@ struct Measured {
     d_cylinder: f64,
 }
 
-fn measure(frames: &Frames, k: usize, blocks: usize, dx: f64, h: f64) -> Measured {
-    let x0 = &frames.x[0];
-    let (x, s, v) = (&frames.x[k], &frames.stress[k], &frames.volume[k]);
+fn measure(frames: &FieldFrames, k: usize, blocks: usize, dx: f64, h: f64) -> Measured {
+    let x0 = &frames.values[0][0];
+    let (x, s, v) = (
+        &frames.values[0][k],
+        &frames.values[1][k],
+        &frames.values[2][k],
+    );
     let n = v.len();
     // Every horizontal section of the block (no body force) carries the load, so the
     // volume integral of σ_yy is −P times the height; the same over the cylinder's R.
@@ -226,8 +197,7 @@ fn run_hertz(dx: f64, overrides: &[&str]) -> (Metrics, Vec<Measured>) {
         mpm_core::scene::Shape::Box { max, .. } => max[1],
         _ => panic!("the block is a box"),
     };
-    let mut frames = Frames::default();
-    let m = run_scene(&scene, &mut frames, &mut |_: &Progress| Control::Continue).expect("run");
+    let (m, frames) = run_fields(&scene, FIELDS);
     println!(
         "cell {dx} m: {:?}, {} steps, {:.1} s, energy drift {:.3}",
         m.outcome, m.steps, m.wall_seconds, m.energy_drift

@@ -36,14 +36,7 @@ impl EquationOfState {
                 gruneisen,
             } => {
                 let rho_c2 = density * sound_speed * sound_speed;
-                let mu = 1.0 / j - 1.0;
-                let cold = if mu > 0.0 {
-                    // Keep the Hugoniot's denominator away from its pole (1 − (s−1)μ = 0).
-                    let denominator = (1.0 - (slope - 1.0) * mu).max(0.1);
-                    rho_c2 * mu * (1.0 + (1.0 - 0.5 * gruneisen) * mu) / (denominator * denominator)
-                } else {
-                    rho_c2 * mu
-                };
+                let (cold, _) = hugoniot_cold(1.0 / j - 1.0, rho_c2, slope, gruneisen);
                 cold + gruneisen * energy
             }
         }
@@ -60,25 +53,8 @@ impl EquationOfState {
                 gruneisen,
             } => {
                 let rho_c2 = density * sound_speed * sound_speed;
-                let mu = 1.0 / j - 1.0;
+                let (_, d_cold) = hugoniot_cold(1.0 / j - 1.0, rho_c2, slope, gruneisen);
                 let dmu_dj = -1.0 / (j * j);
-                let d_cold = if mu > 0.0 {
-                    let raw = 1.0 - (slope - 1.0) * mu;
-                    let (denominator, d_denominator) = if raw > 0.1 {
-                        (raw, -(slope - 1.0))
-                    } else {
-                        (0.1, 0.0)
-                    };
-                    let a = 1.0 - 0.5 * gruneisen;
-                    let numerator = mu * (1.0 + a * mu);
-                    let d_numerator = 1.0 + 2.0 * a * mu;
-                    rho_c2
-                        * (d_numerator / (denominator * denominator)
-                            - 2.0 * numerator * d_denominator
-                                / (denominator * denominator * denominator))
-                } else {
-                    rho_c2
-                };
                 (d_cold * dmu_dj, gruneisen)
             }
         }
@@ -103,4 +79,27 @@ impl EquationOfState {
         let tangent = -dp / (2.0 * h);
         tangent.max(self.reference_bulk_modulus(density, bulk))
     }
+}
+
+/// The Mie–Grüneisen cold pressure at compression μ = 1/J − 1 and its slope in μ: the
+/// Hugoniot fit in compression (its denominator 1 − (s−1)μ kept at 0.1 or more, away from
+/// its pole), linear ρc²μ in tension.
+fn hugoniot_cold(mu: f64, rho_c2: f64, slope: f64, gruneisen: f64) -> (f64, f64) {
+    if mu <= 0.0 {
+        return (rho_c2 * mu, rho_c2);
+    }
+    let raw = 1.0 - (slope - 1.0) * mu;
+    let (denominator, d_denominator) = if raw > 0.1 {
+        (raw, -(slope - 1.0))
+    } else {
+        (0.1, 0.0)
+    };
+    let a = 1.0 - 0.5 * gruneisen;
+    let numerator = mu * (1.0 + a * mu);
+    let d_numerator = 1.0 + 2.0 * a * mu;
+    let d2 = denominator * denominator;
+    (
+        rho_c2 * numerator / d2,
+        rho_c2 * (d_numerator / d2 - 2.0 * numerator * d_denominator / (d2 * denominator)),
+    )
 }

@@ -63,6 +63,34 @@ impl JohnsonCook {
         }
     }
 
+    /// The damage a plastic strain `increment` over `dt` adds: Δεₚ / ε_f at the triaxiality
+    /// of Kirchhoff pressure `kirchhoff_pressure` and von Mises stress `q`, at `temperature`
+    /// (0 without a damage model or without plastic flow).
+    pub(crate) fn damage_increment(
+        &self,
+        increment: f64,
+        dt: f64,
+        kirchhoff_pressure: f64,
+        q: f64,
+        temperature: f64,
+    ) -> f64 {
+        let (Some(d), true) = (&self.params.damage, increment > 0.0) else {
+            return 0.0;
+        };
+        let flow = &self.params.flow_stress;
+        let triaxiality = if q > 0.0 {
+            (-kirchhoff_pressure / q).clamp(-10.0, 10.0)
+        } else {
+            0.0
+        };
+        increment
+            / d.failure_strain(
+                triaxiality,
+                increment / dt / flow.reference_strain_rate,
+                flow.homologous_temperature(temperature),
+            )
+    }
+
     /// Plastic strain increment that brings trial von Mises (Kirchhoff) stress `q_trial`
     /// back to the flow stress: solves q_trial − 3μΔε = σ_y(εₚ + Δε, Δε/dt, T) by Newton's
     /// method kept inside a bracket (the left side falls, the right side rises with Δε).
@@ -205,21 +233,10 @@ impl ConstitutiveLaw for JohnsonCook {
 
             let internal_energy = rho0 * p.specific_heat * (new_temperature - t0);
             let mut pressure = p.equation_of_state.pressure(j, rho0, bulk, internal_energy);
-            if let Some(d) = &p.damage
-                && !failed
-                && increment > 0.0
-            {
-                let triaxiality = if q > 0.0 {
-                    (-pressure * j / q).clamp(-10.0, 10.0)
-                } else {
-                    0.0
-                };
-                let strain_at_failure = d.failure_strain(
-                    triaxiality,
-                    increment / batch.dt / flow.reference_strain_rate,
-                    flow.homologous_temperature(new_temperature),
-                );
-                damage_f[k] = (damage_f[k] + increment / strain_at_failure).min(1.0);
+            if !failed {
+                damage_f[k] = (damage_f[k]
+                    + self.damage_increment(increment, batch.dt, pressure * j, q, new_temperature))
+                .min(1.0);
             }
             if damage_f[k] >= 1.0 {
                 deviatoric_stress = Vector3::zeros();

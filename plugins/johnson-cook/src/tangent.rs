@@ -137,21 +137,10 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
         let (dp_dj, dp_denergy) = eos.pressure_slopes(j, rho0, bulk);
         let mut d_pressure = dp_dj * dj + dp_denergy * d_energy;
         // The update's damage: the particle fails in this update when it reaches 1.
-        if let Some(d) = &p.damage
-            && !failed
-            && increment > 0.0
-        {
-            let triaxiality = if q > 0.0 {
-                (-pressure * j / q).clamp(-10.0, 10.0)
-            } else {
-                0.0
-            };
-            let strain_at_failure = d.failure_strain(
-                triaxiality,
-                increment / batch.dt / flow.reference_strain_rate,
-                flow.homologous_temperature(new_temperature),
-            );
-            failed = damage_f[k] + increment / strain_at_failure >= 1.0;
+        if !failed {
+            failed = damage_f[k]
+                + law.damage_increment(increment, batch.dt, pressure * j, q, new_temperature)
+                >= 1.0;
         }
         let d_deviatoric = if failed {
             d_pressure = match failure {

@@ -132,6 +132,8 @@ pub struct FieldFrames {
     pub times: Vec<f64>,
     /// Per named field, per frame, its values.
     pub values: Vec<Vec<Vec<f64>>>,
+    /// Per frame, the run's diagnostics (`mpm_core::output::FRAME_DIAGNOSTICS`).
+    pub diagnostics: Vec<Vec<f64>>,
 }
 
 impl FieldFrames {
@@ -142,6 +144,7 @@ impl FieldFrames {
             index: vec![0; names.len()],
             times: Vec::new(),
             values: vec![Vec::new(); names.len()],
+            diagnostics: Vec::new(),
         }
     }
 }
@@ -162,6 +165,7 @@ impl OutputSink for FieldFrames {
         for (k, &i) in self.index.iter().enumerate() {
             self.values[k].push(frame.values[i].clone());
         }
+        self.diagnostics.push(frame.diagnostics.to_vec());
         Ok(())
     }
     fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
