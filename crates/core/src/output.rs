@@ -35,6 +35,7 @@ pub const FRAME_DIAGNOSTICS: &[&str] = &[
     "boundary_work",
     "dissipated_energy",
     "energy_error",
+    "angular_momentum",
 ];
 
 /// Static facts about a run, given to the writer before the first frame.

@@ -22,6 +22,13 @@ pub(super) struct Totals {
     angular_scale: f64,
 }
 
+impl Totals {
+    /// The angular momentum's magnitude about the origin (2D: its z component).
+    pub fn angular_momentum(&self) -> f64 {
+        self.angular.iter().map(|a| a * a).sum::<f64>().sqrt()
+    }
+}
+
 /// Measures the particles' totals; `affine_inertia` is the APIC inertia D = coef·dx² of a
 /// B-spline kernel (None: no affine part is counted).
 pub(super) fn totals<const D: usize>(

@@ -1,7 +1,7 @@
 //! The run loop every mode shares: the time step choice (adaptive or fixed, landing on
 //! output times), output frames, the reference, the energy balance and the stop checks.
 
-use super::conservation::{Tracker, totals};
+use super::conservation::{Totals, Tracker, totals};
 use super::multi_field::MultiField;
 use super::output_staging::fill_staging;
 use super::simulation::Simulation;
@@ -105,12 +105,22 @@ where
         None
     }
 
+    /// APIC's inertia D = coef·dx² where the affine part's angular momentum is counted
+    /// (B-spline kernels with APIC), for the conservation totals.
+    fn affine_inertia(&self) -> Option<f64> {
+        K::APIC_INERTIA
+            .filter(|_| self.settings.transfer == Transfer::Apic)
+            .map(|coef| coef * self.grid.dx * self.grid.dx)
+    }
+
+    /// Writes output frame `index` and returns the conservation totals of this instant.
     pub(super) fn write_frame(
         &mut self,
         sink: &mut dyn OutputSink,
         index: usize,
         dt: f64,
-    ) -> Result<(), OutputError> {
+    ) -> Result<Totals, OutputError> {
+        let now = totals(&self.particles, self.affine_inertia());
         self.gather_interface_damage();
         fill_staging(&self.particles, &self.fields, &mut self.staging);
         let k = &self.kinematics;
@@ -128,6 +138,7 @@ where
             self.ledger.boundaries + self.ledger.free_strain,
             self.ledger.dissipated(),
             self.total_energy() - self.ledger.net_input() - self.energy0,
+            now.angular_momentum(),
         ];
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {
@@ -135,7 +146,8 @@ where
             time: self.time,
             values: &self.staging,
             diagnostics: &diagnostics,
-        })
+        })?;
+        Ok(now)
     }
 
     /// Shows the reference (if any) the current state as an output frame.
@@ -214,13 +226,11 @@ where
         let frame_dt = end_time / self.settings.frames as f64;
         let mut frame = 0usize;
         let mut dt;
-        self.write_frame(sink, frame, 0.0)?;
+        let start_totals = self.write_frame(sink, frame, 0.0)?;
         self.observe_reference(false);
         frame += 1;
-        let affine_inertia = K::APIC_INERTIA
-            .filter(|_| self.settings.transfer == Transfer::Apic)
-            .map(|coef| coef * self.grid.dx * self.grid.dx);
-        let mut conservation = Tracker::new(totals(&self.particles, affine_inertia));
+        let affine_inertia = self.affine_inertia();
+        let mut conservation = Tracker::new(start_totals);
         let energy0 = self.energy0;
         let mut mechanical_max = self.kinematics.kinetic_energy + self.stresses.batch.strain_energy;
         let mut drift = 0.0f64;
@@ -300,9 +310,9 @@ where
             }
             if self.time >= next_frame_time - eps {
                 let last = self.time >= end_time - eps;
-                self.write_frame(sink, frame, dt)?;
+                let now = self.write_frame(sink, frame, dt)?;
                 self.observe_reference(last);
-                conservation.observe(totals(&self.particles, affine_inertia));
+                conservation.observe(now);
                 frame += 1;
             }
             let progress = Progress {

@@ -16,7 +16,7 @@ where
 {
     /// Evaluates the map at every particle and fills the output buffers; returns the
     /// frame's diagnostics.
-    fn evaluate_frame(&mut self, dt: f64, steps: u64) -> Result<[f64; 12], RomError> {
+    fn evaluate_frame(&mut self, dt: f64, steps: u64) -> Result<[f64; 13], RomError> {
         let n = self.all.len();
         self.map.positions(&self.q, &self.all, &mut self.all_x)?;
         self.map
@@ -98,8 +98,10 @@ where
             max_speed,
             min_det,
             momentum.norm(),
-            // The reduced run keeps no energy ledger: no boundary work, nothing booked as
-            // dissipated, no energy error measured.
+            // The reduced run keeps no energy ledger and no conservation totals: no
+            // boundary work, nothing booked as dissipated, no energy error or angular
+            // momentum measured.
+            0.0,
             0.0,
             0.0,
             0.0,
@@ -114,7 +116,7 @@ where
         time: f64,
         dt: f64,
         steps: u64,
-    ) -> Result<[f64; 12], RomError> {
+    ) -> Result<[f64; 13], RomError> {
         let diagnostics = self.evaluate_frame(dt, steps)?;
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {
