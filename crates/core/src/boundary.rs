@@ -243,6 +243,22 @@ impl<const D: usize> Boundaries<D> {
         }
     }
 
+    /// Whether the grid cell with lowest node `ijk` and centre `centre` lies behind a wall
+    /// surface or inside an obstacle (for the incompressible mode, whose pressure sees
+    /// such cells as solid, not as free surface).
+    pub fn cell_is_solid(&self, ijk: [usize; 3], centre: &Vector<D>) -> bool {
+        self.walls.iter().any(|w| {
+            if w.upper {
+                ijk[w.axis] >= w.surface
+            } else {
+                ijk[w.axis] < w.surface
+            }
+        }) || self
+            .obstacles
+            .iter()
+            .any(|o| o.solid.distance_and_normal(centre).0 < 0.0)
+    }
+
     /// Whether there is nothing to apply.
     pub fn is_empty(&self) -> bool {
         self.walls.is_empty() && self.obstacles.is_empty()

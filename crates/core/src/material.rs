@@ -159,6 +159,15 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
         let _ = batch;
     }
+    /// `Some(μ)` marks a liquid: a law that gives only the deviatoric (viscous) stress,
+    /// whose pressure the incompressible mode (`solver.mechanics.incompressible`) solves
+    /// for; μ bounds its dynamic viscosity, Pa·s (say, the largest it has computed), for the
+    /// explicit viscous step limit ρ·dx²/(2·D·μ). A liquid may keep a one-component state
+    /// field named `pressure`: the mode writes each particle's pressure there. `None`, the
+    /// default, is a solid, which the incompressible mode refuses.
+    fn liquid_viscosity(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// Object-safe form of [`ConstitutiveLaw`]; implemented for every law, used by the solver.
@@ -183,6 +192,8 @@ pub trait Material: Send + Sync {
     fn stress_derivative_2d(&self, batch: TangentBatch<'_, 2>);
     /// 3D [`ConstitutiveLaw::stress_derivative`].
     fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>);
+    /// See [`ConstitutiveLaw::liquid_viscosity`].
+    fn liquid_viscosity(&self) -> Option<f64>;
 }
 
 impl<T: ConstitutiveLaw> Material for T {
@@ -215,6 +226,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>) {
         self.stress_derivative::<3>(batch)
+    }
+    fn liquid_viscosity(&self) -> Option<f64> {
+        ConstitutiveLaw::liquid_viscosity(self)
     }
 }
 

@@ -27,12 +27,16 @@ mod cross_section;
 mod front;
 mod hele_shaw;
 mod lattice;
+mod liquid;
+mod liquid_references;
 mod parameters;
 mod underfill;
 mod viscosity;
 mod voids;
 
 pub use capillary_filling::{capillary_fill_time, capillary_front};
+pub use liquid::{Liquid, LiquidParameters};
+pub use liquid_references::{MARTIN_MOYCE_N2, martin_moyce_front};
 pub use parameters::{
     Air, BumpArray, BumpPattern, FlowMode, Fluid, InitialFill, Reservoir, UnderfillParameters,
 };
@@ -40,7 +44,7 @@ pub use underfill::{FILL_COLUMNS, FILL_TABLE, Underfill, VOIDS_TABLE};
 pub use viscosity::{CastroMacoskoParameters, CrossParameters, MAX_VISCOSITY, Viscosity};
 
 use mpm_core::physics::{Physics, PhysicsFactory, TypedPhysicsFactory};
-use mpm_core::plugin::{MaterialFactory, Plugin};
+use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory};
 use mpm_core::reference::ReferenceFactory;
 use mpm_core::scene::{Issue, Scene};
 use std::sync::Arc;
@@ -58,7 +62,7 @@ impl Plugin for UnderfillPlugin {
     }
 
     fn materials(&self) -> Vec<Box<dyn MaterialFactory>> {
-        Vec::new()
+        vec![Box::new(TypedMaterialFactory::new("liquid", liquid::build))]
     }
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
@@ -66,7 +70,9 @@ impl Plugin for UnderfillPlugin {
     }
 
     fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
-        vec![capillary_filling::factory()]
+        let mut references = vec![capillary_filling::factory()];
+        references.extend(liquid_references::factories());
+        references
     }
 }
 

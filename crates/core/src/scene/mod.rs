@@ -26,8 +26,8 @@ pub use domain::{Contact, Domain, Side, Wall};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{Output, StopCriteria};
 pub use solver_settings::{
-    AntiLocking, ImplicitForm, ImplicitSettings, KernelName, KrylovMethod, Mechanics, Scheme,
-    Solver, TangentMethod, Transfer,
+    AntiLocking, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName, KrylovMethod,
+    Mechanics, Scheme, Solver, TangentMethod, Transfer,
 };
 pub use validate::{
     CORE_FIELDS, INTERFACE_DAMAGE, ValidatedScene, parse_scene, parse_scene_value,

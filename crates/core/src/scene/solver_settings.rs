@@ -122,6 +122,41 @@ pub enum Mechanics {
     /// (`static`) or Newmark dynamics (`dynamic`) every step, with steps far beyond the
     /// explicit stable step. For stiff, slow processes (cure, cool-down, thermal cycling).
     Implicit(ImplicitSettings),
+    /// Incompressible liquid: a fractional-step (Chorin) projection every step. Body and
+    /// viscous forces act explicitly, then a pressure Poisson equation on the grid makes
+    /// the nodal velocity (nearly) divergence-free; the step is bounded by the velocity
+    /// CFL and the explicit viscous limit, not by a sound speed. Every material of the
+    /// scene must be a liquid (e.g. type `liquid`).
+    Incompressible(IncompressibleSettings),
+}
+
+/// Settings of `solver.mechanics.incompressible`; every field has a default.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct IncompressibleSettings {
+    /// Relative residual the pressure solve (Jacobi-preconditioned CG) reaches.
+    #[serde(default = "default_pressure_tolerance")]
+    pub tolerance: f64,
+    /// Most CG iterations per pressure solve; a solve that does not converge in them stops
+    /// the run with a diagnostic.
+    #[serde(default = "default_pressure_iterations")]
+    pub max_iterations: u32,
+}
+
+impl Default for IncompressibleSettings {
+    fn default() -> Self {
+        Self {
+            tolerance: default_pressure_tolerance(),
+            max_iterations: default_pressure_iterations(),
+        }
+    }
+}
+
+fn default_pressure_tolerance() -> f64 {
+    1e-8
+}
+fn default_pressure_iterations() -> u32 {
+    2000
 }
 
 /// What the implicit mode solves each step.
@@ -410,6 +445,24 @@ impl Solver {
             }
             if let Some(d) = damping {
                 v.positive(&format!("{p}.damping"), d);
+            }
+        }
+        if let Mechanics::Incompressible(settings) = &self.mechanics {
+            let p = "solver.mechanics.incompressible";
+            if !(settings.tolerance > 0.0 && settings.tolerance < 1.0) {
+                v.err(
+                    format!("{p}.tolerance"),
+                    format!("must lie in (0, 1) (got {})", settings.tolerance),
+                );
+            }
+            if settings.max_iterations == 0 {
+                v.err(format!("{p}.max_iterations"), "must be at least 1");
+            }
+            if self.anti_locking == AntiLocking::Fbar {
+                v.err(
+                    "solver.anti_locking",
+                    "F-bar has no part in incompressible mechanics (the pressure solve keeps the volume): remove it",
+                );
             }
         }
         if let Mechanics::Implicit(settings) = &self.mechanics {

@@ -292,6 +292,21 @@ impl Validator {
                 }
             }
         }
+        let incompressible = matches!(s.solver.mechanics, Mechanics::Incompressible(_));
+        for (name, m) in materials {
+            let liquid = m.liquid_viscosity().is_some();
+            if incompressible && !liquid {
+                self.err(
+                    format!("materials.{name}.type"),
+                    "incompressible mechanics moves liquids only (a material with a viscosity and no equation of state, e.g. type `liquid`); solids in the same scene are not supported yet",
+                );
+            } else if liquid && !incompressible {
+                self.err(
+                    format!("materials.{name}.type"),
+                    "a liquid has no equation of state: its pressure comes from `solver.mechanics: {\"incompressible\": {}}`",
+                );
+            }
+        }
         if matches!(
             s.solver.mechanics,
             Mechanics::Off | Mechanics::QuasiStatic { .. }

@@ -22,6 +22,7 @@ mod explicit;
 mod grid_to_particle;
 pub mod grid_update;
 mod implicit;
+mod incompressible;
 mod interpolation;
 mod mechanics_off;
 mod mode;

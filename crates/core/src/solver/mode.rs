@@ -6,6 +6,7 @@
 use super::DimensionDispatch;
 use super::explicit::Explicit;
 use super::implicit::Implicit;
+use super::incompressible::Incompressible;
 use super::mechanics_off::MechanicsOff;
 use super::quasi_static::QuasiStatic;
 use super::simulation::Simulation;
@@ -40,5 +41,6 @@ where
             damping,
         }),
         Mechanics::Implicit(settings) => Box::new(Implicit::<D>::new(settings)),
+        Mechanics::Incompressible(settings) => Box::new(Incompressible::new(settings)),
     }
 }

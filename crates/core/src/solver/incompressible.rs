@@ -1,0 +1,480 @@
+//! Incompressible liquid (`solver.mechanics.incompressible`): a fractional-step (Chorin)
+//! projection MPM after Kularathna & Soga (2017, "Implicit formulation of material point
+//! method for analysis of incompressible materials", CMAME 313) and Zhang, Zhang & Liu
+//! (2017, "Incompressible material point method for free surface flow", JCP 330).
+//!
+//! Each step:
+//! 1. P2G of mass and momentum with the scene's transfer, the liquid's viscous
+//!    (deviatoric) stress and gravity as explicit forces; grid update with walls and
+//!    obstacles: the intermediate velocity v*.
+//! 2. Pressure Poisson equation on the grid nodes, Galerkin with the grid's bilinear
+//!    (trilinear) cell shape functions N, integrated exactly over the liquid cells:
+//!    Σ_c (1/ρ_c) ∫_c ∇N_i·∇N_j p_j = (1/dt) Σ_c ∫_c ∇N_i·v*, with v* the velocity before
+//!    the walls act (the weak form of -(1/dt)∫N_i ∇·v* whose wall term, the flux through
+//!    fixed walls after the step, is zero). A cell is liquid when a
+//!    particle lies in it; a node touching an empty cell is on the free surface (p = 0).
+//!    Cells behind a wall surface or inside an obstacle are neither: walls are a natural
+//!    ∂p/∂n = 0 boundary, open domain faces are free surface (p = 0). Solved by core's Jacobi-preconditioned CG, warm
+//!    started from the last pressure.
+//! 3. Projection: v = v* - (dt/m_i) Σ_c ∫_c N_i ∇p, then the walls and obstacles again, so
+//!    no liquid crosses them.
+//! 4. G2P (velocities, positions, velocity gradient), physics, viscous stress; the nodal
+//!    pressure is interpolated to the particles' `pressure` field.
+//!
+//! Equal-order velocity/pressure on one grid is not inf-sup stable for the coupled
+//! problem, but the fractional step is: its compact Laplacian ∫∇N·∇N differs from the
+//! wide D·M⁻¹·G operator by an O(dt) pressure-stabilising term (Codina 2001), which is
+//! what removes the checkerboard mode (pressures at node parity classes decouple under
+//! D·M⁻¹·G, not under ∫∇N·∇N). The price: ∇·v is small, not zero, at the discrete level.
+//!
+//! The step is bounded by the velocity CFL, dx/(|v|max + √(dx·|g|)), and, with viscosity explicit, by
+//! ρ·dx²/(2·D·μ); never by a sound speed.
+
+use super::DimensionDispatch;
+use super::grid_update::{GridParams, update_grid};
+use super::mode::StepMode;
+use super::particle_to_grid::ForceTerm;
+use super::simulation::Simulation;
+use crate::boundary::Boundaries;
+use crate::grid::{node_coords, node_position};
+use crate::kernels::Kernel;
+use crate::linear_solvers::conjugate_gradient::{Work, solve};
+use crate::material::Material;
+use crate::math::{Matrix, Vector};
+use crate::physics::PhysicsFault;
+use crate::scene::{IncompressibleSettings, Transfer};
+
+/// Corners of a cell (2^D, at most 8).
+const MAX_CORNERS: usize = 8;
+
+/// The pressure projection and its workspace (allocated on the first step, reused).
+pub(super) struct Incompressible<const D: usize> {
+    settings: IncompressibleSettings,
+    /// Cell-shape-function stiffness ∫∇N_a·∇N_b over one full cell.
+    stiffness: [[f64; MAX_CORNERS]; MAX_CORNERS],
+    /// ∫N_a ∂N_b/∂x_d over one full cell, `[a][d][b]`.
+    gradient: [[[f64; MAX_CORNERS]; 3]; MAX_CORNERS],
+    /// Node-index offset of each cell corner.
+    corner_offset: [usize; MAX_CORNERS],
+    /// Particle mass and reference volume per cell (cell index), for the liquid flag and ρ.
+    cell_mass: Vec<f64>,
+    cell_volume: Vec<f64>,
+    /// Node index of each cell's lowest corner.
+    cell_node: Vec<usize>,
+    /// Nodal velocity after the explicit forces, before walls and obstacles act.
+    free_velocity: Vec<Vector<D>>,
+    /// Cells behind a wall or inside an obstacle (at its initial place): neither liquid
+    /// nor free surface.
+    cell_solid: Vec<bool>,
+    /// Per node: 1/diagonal on the free (pressure-unknown) nodes, 0 on the free surface.
+    inverse_diagonal: Vec<f64>,
+    pressure: Vec<f64>,
+    rhs: Vec<f64>,
+    r: Vec<f64>,
+    z: Vec<f64>,
+    p: Vec<f64>,
+    ap: Vec<f64>,
+}
+
+impl<const D: usize> Incompressible<D> {
+    pub(super) fn new(settings: IncompressibleSettings) -> Self {
+        Self {
+            settings,
+            stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
+            gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
+            corner_offset: [0; MAX_CORNERS],
+            cell_mass: Vec::new(),
+            cell_volume: Vec::new(),
+            cell_node: Vec::new(),
+            cell_solid: Vec::new(),
+            free_velocity: Vec::new(),
+            inverse_diagonal: Vec::new(),
+            pressure: Vec::new(),
+            rhs: Vec::new(),
+            r: Vec::new(),
+            z: Vec::new(),
+            p: Vec::new(),
+            ap: Vec::new(),
+        }
+    }
+
+    /// Sizes the workspace and the element matrices for `grid` (once).
+    fn prepare(
+        &mut self,
+        grid: &crate::grid::Grid<D>,
+        boundaries: &crate::boundary::Boundaries<D>,
+    ) {
+        if self.pressure.len() == grid.len() {
+            return;
+        }
+        let dx = grid.dx;
+        let corners = 1 << D;
+        // 1D factors on [0, 1]: φ0 = 1 - s, φ1 = s.
+        let m1 = |a: usize, b: usize| if a == b { 1.0 / 3.0 } else { 1.0 / 6.0 };
+        let k1 = |a: usize, b: usize| if a == b { 1.0 } else { -1.0 };
+        let g1 = |_a: usize, b: usize| if b == 1 { 0.5 } else { -0.5 };
+        let bit = |a: usize, d: usize| (a >> d) & 1;
+        for a in 0..corners {
+            self.corner_offset[a] = (0..D).map(|d| bit(a, d) * grid.stride[d]).sum();
+            for b in 0..corners {
+                let mut k = 0.0;
+                for d in 0..D {
+                    let mut term = k1(bit(a, d), bit(b, d)) / dx;
+                    let mut grad = g1(bit(a, d), bit(b, d));
+                    for e in (0..D).filter(|&e| e != d) {
+                        term *= dx * m1(bit(a, e), bit(b, e));
+                        grad *= dx * m1(bit(a, e), bit(b, e));
+                    }
+                    k += term;
+                    self.gradient[a][d][b] = grad;
+                }
+                self.stiffness[a][b] = k;
+            }
+        }
+        let cells: usize = grid.cells[..D].iter().product();
+        self.cell_mass = vec![0.0; cells];
+        self.cell_volume = vec![0.0; cells];
+        self.cell_node = (0..cells)
+            .map(|c| {
+                let mut rest = c;
+                let mut node = 0;
+                for d in (0..D).rev() {
+                    node += (rest % grid.cells[d]) * grid.stride[d];
+                    rest /= grid.cells[d];
+                }
+                node
+            })
+            .collect();
+        self.cell_solid = self
+            .cell_node
+            .iter()
+            .map(|&node| {
+                let ijk = node_coords(&grid.stride, node);
+                let mut centre = node_position(&grid.origin, grid.dx, ijk);
+                for d in 0..D {
+                    centre[d] += 0.5 * grid.dx;
+                }
+                boundaries.cell_is_solid(ijk, &centre)
+            })
+            .collect();
+        let n = grid.len();
+        self.free_velocity = vec![Vector::<D>::zeros(); n];
+        for v in [
+            &mut self.inverse_diagonal,
+            &mut self.pressure,
+            &mut self.rhs,
+            &mut self.r,
+            &mut self.z,
+            &mut self.p,
+            &mut self.ap,
+        ] {
+            *v = vec![0.0; n];
+        }
+    }
+}
+
+/// Cell index of a position (clamped into the grid).
+#[inline]
+fn cell_of<const D: usize>(grid: &crate::grid::Grid<D>, x: &Vector<D>) -> (usize, [f64; 3]) {
+    let mut index = 0;
+    let mut local = [0.0; 3];
+    for d in 0..D {
+        let s = (x[d] - grid.origin[d]) * grid.inv_dx;
+        let last = grid.cells[d] as f64 - 1.0;
+        let c = s.floor().clamp(0.0, last.max(0.0));
+        local[d] = (s - c).clamp(0.0, 1.0);
+        index = index * grid.cells[d] + c as usize;
+    }
+    (index, local)
+}
+
+impl<const D: usize, K: Kernel> StepMode<D, K> for Incompressible<D>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    fn advance(&mut self, sim: &mut Simulation<D, K>, dt: f64) {
+        let sort = sim.settings.sort_interval;
+        if sort > 0 && sim.sort_counter.is_multiple_of(sort as u64) {
+            sim.reorder.apply(&sim.grid, &mut sim.particles);
+        }
+        sim.sort_counter += 1;
+        sim.bins.rebuild::<D, K>(&sim.grid, &sim.particles);
+        let force = if sim.settings.mls {
+            ForceTerm::Mls
+        } else {
+            ForceTerm::Standard
+        };
+        sim.grid.clear();
+        sim.p2g(dt, true, force);
+        self.grid_velocity(sim, dt);
+        self.project(sim, dt);
+        sim.g2p(dt, true, true, true);
+        // The liquid's volume is kept by the projection, not by F: keep F = I so the
+        // particle volume stays its reference volume and F cannot degenerate.
+        sim.particles
+            .deformation_gradient
+            .fill(Matrix::<D>::identity());
+        sim.advance_physics(dt, true);
+        sim.update_stresses(dt);
+        self.pressure_to_particles(sim);
+    }
+
+    fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
+        let dx = sim.grid.dx;
+        // Velocity CFL, with the speed gravity adds within one step so that a liquid at
+        // rest does not get an unbounded step: dx / (|v|max + √(dx·|g|)).
+        let g = sim.settings.gravity.norm();
+        let convective = dx / (sim.kinematics.max_speed + (dx * g).sqrt()).max(1e-300);
+        let mut viscous = f64::INFINITY;
+        for group in &sim.particles.groups {
+            let mu = group.material.liquid_viscosity().unwrap_or(0.0);
+            if mu > 0.0 {
+                let rho = group.material.density();
+                viscous = viscous.min(rho * dx * dx / (2.0 * D as f64 * mu));
+            }
+        }
+        convective.min(viscous).min(sim.physics_dt)
+    }
+}
+
+impl<const D: usize> Incompressible<D> {
+    /// Turns nodal momentum into velocity with the explicit forces (as the explicit grid
+    /// update does) and keeps it before the walls and obstacles act: the projection
+    /// corrects that velocity, so a wall's reaction to gravity and to the pressure
+    /// balance (a liquid at rest on a floor stays at rest), and only then do the walls
+    /// act again.
+    fn grid_velocity<K: Kernel>(&mut self, sim: &mut Simulation<D, K>, dt: f64)
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
+        self.prepare(&sim.grid, &sim.boundaries);
+        let params = GridParams {
+            dt,
+            forces: true,
+            flip: sim.settings.transfer == Transfer::Flip,
+            damping: sim.settings.damping,
+            time: sim.time + dt,
+        };
+        sim.boundaries.fold_stick_walls(&mut sim.grid);
+        update_grid(&mut sim.grid, &Boundaries::default(), params);
+        self.free_velocity.copy_from_slice(&sim.grid.momentum);
+        apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// Solves the pressure Poisson equation for the grid velocity after the explicit
+    /// forces and projects it; walls and obstacles act again afterwards.
+    fn project<K: Kernel>(&mut self, sim: &mut Simulation<D, K>, dt: f64)
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
+        let corners = 1 << D;
+        // Liquid cells and their density.
+        self.cell_mass.fill(0.0);
+        self.cell_volume.fill(0.0);
+        let particles = &sim.particles;
+        for i in 0..particles.len() {
+            let (c, _) = cell_of(&sim.grid, &particles.position[i]);
+            self.cell_mass[c] += particles.mass[i];
+            self.cell_volume[c] += particles.volume0[i];
+        }
+        // Free nodes: every cell around them inside the grid is liquid. Start all nodes
+        // touched by a liquid cell as free, then clear those touching an empty cell.
+        self.inverse_diagonal.fill(0.0);
+        for c in 0..self.cell_mass.len() {
+            if self.cell_volume[c] > 0.0 {
+                let rho = self.cell_mass[c] / self.cell_volume[c];
+                let base = self.cell_node[c];
+                for a in 0..corners {
+                    self.inverse_diagonal[base + self.corner_offset[a]] +=
+                        self.stiffness[a][a] / rho;
+                }
+            }
+        }
+        for c in 0..self.cell_mass.len() {
+            if self.cell_volume[c] <= 0.0 && !self.cell_solid[c] {
+                let base = self.cell_node[c];
+                for a in 0..corners {
+                    self.inverse_diagonal[base + self.corner_offset[a]] = -1.0;
+                }
+            }
+        }
+        for v in &mut self.inverse_diagonal {
+            *v = if *v > 0.0 { 1.0 / *v } else { 0.0 };
+        }
+        // Right-hand side (1/dt) ∫ ∇N_i · v* over the liquid cells, with v* before the walls
+        // act: -(1/dt) ∫ N_i ∇·v* integrated by parts, where the boundary term is the flux
+        // through the walls after the step, zero (fixed walls), and N_i = 0 on the free
+        // surface. A liquid at rest on a floor then has exactly ρ·g·h.
+        self.rhs.fill(0.0);
+        let velocity = &self.free_velocity;
+        for c in 0..self.cell_mass.len() {
+            if self.cell_volume[c] <= 0.0 {
+                continue;
+            }
+            let base = self.cell_node[c];
+            for a in 0..corners {
+                let mut flux = 0.0;
+                for b in 0..corners {
+                    let v = &velocity[base + self.corner_offset[b]];
+                    for d in 0..D {
+                        flux += self.gradient[b][d][a] * v[d];
+                    }
+                }
+                self.rhs[base + self.corner_offset[a]] += flux / dt;
+            }
+        }
+        for (x, free) in self.pressure.iter_mut().zip(&self.inverse_diagonal) {
+            if *free <= 0.0 {
+                *x = 0.0;
+            }
+        }
+        let Self {
+            stiffness,
+            corner_offset,
+            cell_mass,
+            cell_volume,
+            cell_node,
+            inverse_diagonal,
+            pressure,
+            rhs,
+            r,
+            z,
+            p,
+            ap,
+            settings,
+            ..
+        } = self;
+        let apply = |x: &[f64], y: &mut [f64]| {
+            y.fill(0.0);
+            for c in 0..cell_mass.len() {
+                if cell_volume[c] <= 0.0 {
+                    continue;
+                }
+                let scale = cell_volume[c] / cell_mass[c];
+                let base = cell_node[c];
+                for a in 0..corners {
+                    let mut sum = 0.0;
+                    for b in 0..corners {
+                        sum += stiffness[a][b] * x[base + corner_offset[b]];
+                    }
+                    y[base + corner_offset[a]] += scale * sum;
+                }
+            }
+        };
+        let result = if inverse_diagonal.iter().any(|&v| v > 0.0) {
+            solve(
+                apply,
+                inverse_diagonal,
+                rhs,
+                pressure,
+                Work { r, z, p, ap },
+                settings.tolerance,
+                settings.max_iterations,
+            )
+        } else {
+            crate::linear_solvers::conjugate_gradient::Solve {
+                iterations: 0,
+                converged: true,
+            }
+        };
+        sim.report
+            .record_max("incompressible.iterations", result.iterations as f64);
+        if !result.converged {
+            sim.report.fail(PhysicsFault {
+                field: "pressure".into(),
+                particle: None,
+                value: result.iterations as f64,
+                message: format!(
+                    "the pressure solve did not converge in {} iterations (raise solver.mechanics.incompressible.max_iterations or the tolerance)",
+                    self.settings.max_iterations
+                ),
+            });
+        }
+        // Projection of the velocity before the walls: v -= dt/m ∫ N ∇p over the liquid
+        // cells.
+        sim.grid.momentum.copy_from_slice(&self.free_velocity);
+        let mut grad = [[0.0; 3]; MAX_CORNERS];
+        for c in 0..self.cell_mass.len() {
+            if self.cell_volume[c] <= 0.0 {
+                continue;
+            }
+            let base = self.cell_node[c];
+            for (a, g) in grad.iter_mut().enumerate().take(corners) {
+                for (d, gd) in g.iter_mut().enumerate().take(D) {
+                    let mut sum = 0.0;
+                    for b in 0..corners {
+                        sum += self.gradient[a][d][b] * self.pressure[base + self.corner_offset[b]];
+                    }
+                    *gd = sum;
+                }
+            }
+            for (a, g) in grad.iter().enumerate().take(corners) {
+                let node = base + self.corner_offset[a];
+                let m = sim.grid.mass[node];
+                if m > 0.0 {
+                    for (d, gd) in g.iter().enumerate().take(D) {
+                        sim.grid.momentum[node][d] -= dt * gd / m;
+                    }
+                }
+            }
+        }
+        apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// Interpolates the nodal pressure (cell shape functions) into the liquids' `pressure`
+    /// state field.
+    fn pressure_to_particles<K: Kernel>(&self, sim: &mut Simulation<D, K>) {
+        let corners = 1 << D;
+        let grid = &sim.grid;
+        let crate::particles::Particles {
+            groups, position, ..
+        } = &mut sim.particles;
+        for group in groups.iter_mut() {
+            let Some(field) = group
+                .material
+                .state_fields()
+                .iter()
+                .position(|f| f.name == "pressure" && f.components == 1)
+            else {
+                continue;
+            };
+            let out = &mut group.state[field];
+            for (k, i) in group.range.clone().enumerate() {
+                let (c, s) = cell_of(grid, &position[i]);
+                let base = self.cell_node[c];
+                let mut value = 0.0;
+                for a in 0..corners {
+                    let mut w = 1.0;
+                    for (d, sd) in s.iter().enumerate().take(D) {
+                        w *= if (a >> d) & 1 == 1 { *sd } else { 1.0 - sd };
+                    }
+                    value += w * self.pressure[base + self.corner_offset[a]];
+                }
+                out[k] = value;
+            }
+        }
+    }
+}
+
+/// Walls and obstacles on the nodal velocity (with the stick walls' mirrored ghosts).
+fn apply_boundaries<const D: usize, K: Kernel>(sim: &mut Simulation<D, K>, time: f64)
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    if sim.boundaries.is_empty() {
+        return;
+    }
+    let (origin, dx, stride) = (sim.grid.origin, sim.grid.dx, sim.grid.stride);
+    for i in 0..sim.grid.len() {
+        let m = sim.grid.mass[i];
+        if m <= 0.0 {
+            continue;
+        }
+        let ijk = node_coords(&stride, i);
+        let x = node_position(&origin, dx, ijk);
+        let mut v = sim.grid.momentum[i];
+        sim.boundaries.apply(ijk, &x, time, m, &mut v);
+        sim.grid.momentum[i] = v;
+    }
+    sim.boundaries.mirror_stick_walls(&mut sim.grid);
+}

@@ -1,0 +1,145 @@
+//! The `liquid` particle material: a generalised Newtonian liquid (the plugin's
+//! [`Viscosity`] laws) for `solver.mechanics.incompressible`. It gives only the viscous,
+//! deviatoric stress 2μ·dev(sym L); the pressure comes from the mode's projection, not
+//! from an equation of state. Temperature and cure are read from the particles when a
+//! physics creates them, else `temperature` is used and the cure is 0.
+
+use crate::viscosity::Viscosity;
+use mpm_core::material::{
+    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, Material, SharedRead, StressBatch,
+};
+use mpm_core::math::{Matrix, trace};
+use mpm_core::scene::Issue;
+use schemars::JsonSchema;
+use serde::Deserialize;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Scene section of a `liquid` material.
+#[derive(Clone, Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LiquidParameters {
+    /// Mass density, kg/m³.
+    pub density: f64,
+    /// Viscosity law (`{"newtonian": 1e-3}`, `cross`, `castro_macosko`), Pa·s.
+    pub viscosity: Viscosity,
+    /// Temperature the viscosity is evaluated at when no physics gives the particles one, K.
+    #[serde(default = "default_temperature")]
+    pub temperature: f64,
+}
+
+fn default_temperature() -> f64 {
+    293.15
+}
+
+const FIELDS: &[FieldSpec] = &[FieldSpec {
+    name: "pressure",
+    components: 1,
+    initial: FieldInit::Zero,
+}];
+
+const READS: &[SharedRead] = &[
+    SharedRead {
+        name: "temperature",
+        required: false,
+    },
+    SharedRead {
+        name: "cure",
+        required: false,
+    },
+];
+
+/// A viscous liquid for the incompressible mode.
+#[derive(Debug)]
+pub struct Liquid {
+    params: LiquidParameters,
+    /// Largest viscosity of the last update (f64 bits), for the viscous step limit.
+    max_viscosity: AtomicU64,
+}
+
+impl Liquid {
+    /// From checked parameters.
+    pub fn new(params: LiquidParameters) -> Self {
+        let mu = params.viscosity.at(params.temperature, 0.0, 0.0);
+        Self {
+            params,
+            max_viscosity: AtomicU64::new(mu.to_bits()),
+        }
+    }
+}
+
+impl ConstitutiveLaw for Liquid {
+    fn density(&self) -> f64 {
+        self.params.density
+    }
+
+    fn state_fields(&self) -> &[FieldSpec] {
+        FIELDS
+    }
+
+    fn needs_velocity_gradient(&self) -> bool {
+        true
+    }
+
+    fn shared_reads(&self) -> &[SharedRead] {
+        READS
+    }
+
+    fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
+        let [temperature, cure, ..] = batch.shared;
+        let law = &self.params.viscosity;
+        let mut largest = 0.0f64;
+        for (p, stress) in batch.stress.iter_mut().enumerate() {
+            let l = batch
+                .velocity_gradient
+                .get(p)
+                .copied()
+                .unwrap_or_else(Matrix::<D>::zeros);
+            let rate = (l + l.transpose()) * 0.5;
+            let dev = rate - Matrix::<D>::identity() * (trace(&rate) / D as f64);
+            let shear_rate = (2.0 * dev.norm_squared()).sqrt();
+            let t = temperature
+                .get(p)
+                .copied()
+                .unwrap_or(self.params.temperature);
+            let a = cure.get(p).copied().unwrap_or(0.0);
+            let mu = law.at(t, shear_rate, a);
+            largest = largest.max(mu);
+            *stress = dev * (2.0 * mu);
+        }
+        if !batch.stress.is_empty() {
+            self.max_viscosity
+                .fetch_max(largest.to_bits(), Ordering::Relaxed);
+        }
+        BatchStats {
+            strain_energy: 0.0,
+            max_wave_speed: 0.0,
+        }
+    }
+
+    fn liquid_viscosity(&self) -> Option<f64> {
+        Some(f64::from_bits(self.max_viscosity.load(Ordering::Relaxed)))
+    }
+}
+
+/// Checks the parameters and builds the material.
+pub(crate) fn build(p: LiquidParameters, path: &str) -> Result<Arc<dyn Material>, Vec<Issue>> {
+    let mut issues = p.viscosity.check(&format!("{path}.viscosity"));
+    if !(p.density.is_finite() && p.density > 0.0) {
+        issues.push(Issue::new(
+            format!("{path}.density"),
+            "must be a finite number > 0",
+        ));
+    }
+    if !(p.temperature.is_finite() && p.temperature > 0.0) {
+        issues.push(Issue::new(
+            format!("{path}.temperature"),
+            "must be a finite number > 0 (kelvin)",
+        ));
+    }
+    if issues.is_empty() {
+        Ok(Arc::new(Liquid::new(p)))
+    } else {
+        Err(issues)
+    }
+}
