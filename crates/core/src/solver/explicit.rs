@@ -35,17 +35,9 @@ where
     /// One explicit mechanical step with the scene's update scheme; with `physics`, the
     /// physics operators advance between the kinematic and the stress update.
     pub(super) fn mechanical_step(&mut self, dt: f64, physics: bool) {
-        let sort = self.settings.sort_interval;
-        if sort > 0 && self.sort_counter.is_multiple_of(sort as u64) {
-            self.reorder.apply(&self.grid, &mut self.particles);
-        }
-        self.sort_counter += 1;
+        self.reorder_if_due();
         self.bins.rebuild::<D, K>(&self.grid, &self.particles);
-        let force = if self.settings.mls {
-            ForceTerm::Mls
-        } else {
-            ForceTerm::Standard
-        };
+        let force = self.force_term();
         if self.contact.is_some() {
             // Validation allows contact with USL only.
             self.contact_step(dt, physics, force);

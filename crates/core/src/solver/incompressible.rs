@@ -33,7 +33,6 @@
 use super::DimensionDispatch;
 use super::grid_update::{GridParams, update_grid};
 use super::mode::StepMode;
-use super::particle_to_grid::ForceTerm;
 use super::simulation::Simulation;
 use crate::boundary::Boundaries;
 use crate::grid::{node_coords, node_position};
@@ -193,17 +192,9 @@ where
     dyn Material: DimensionDispatch<D>,
 {
     fn advance(&mut self, sim: &mut Simulation<D, K>, dt: f64) {
-        let sort = sim.settings.sort_interval;
-        if sort > 0 && sim.sort_counter.is_multiple_of(sort as u64) {
-            sim.reorder.apply(&sim.grid, &mut sim.particles);
-        }
-        sim.sort_counter += 1;
+        sim.reorder_if_due();
         sim.bins.rebuild::<D, K>(&sim.grid, &sim.particles);
-        let force = if sim.settings.mls {
-            ForceTerm::Mls
-        } else {
-            ForceTerm::Standard
-        };
+        let force = sim.force_term();
         sim.grid.clear();
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);

@@ -233,6 +233,25 @@ where
         }
     }
 
+    /// Reorders the particles by cell every `solver.sort_interval` steps (this one
+    /// counted): the start of every mode's step.
+    pub(super) fn reorder_if_due(&mut self) {
+        let sort = self.settings.sort_interval;
+        if sort > 0 && self.sort_counter.is_multiple_of(sort as u64) {
+            self.reorder.apply(&self.grid, &mut self.particles);
+        }
+        self.sort_counter += 1;
+    }
+
+    /// The internal-force term of P2G: the MLS-MPM form or the standard one.
+    pub(super) fn force_term(&self) -> ForceTerm {
+        if self.settings.mls {
+            ForceTerm::Mls
+        } else {
+            ForceTerm::Standard
+        }
+    }
+
     pub(super) fn inertia(&self) -> f64 {
         K::APIC_INERTIA.unwrap_or(0.25)
     }

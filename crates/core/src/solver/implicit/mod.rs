@@ -77,11 +77,7 @@ where
     dyn Material: DimensionDispatch<D>,
 {
     fn advance(&mut self, sim: &mut Simulation<D, K>, dt: f64) {
-        let sort = sim.settings.sort_interval;
-        if sort > 0 && sim.sort_counter.is_multiple_of(sort as u64) {
-            sim.reorder.apply(&sim.grid, &mut sim.particles);
-        }
-        sim.sort_counter += 1;
+        sim.reorder_if_due();
         let free_strain = sim.particles.shared.contains(FREE_STRAIN);
         if free_strain {
             let fs = sim.particles.shared.get(FREE_STRAIN).unwrap_or(&[]);
