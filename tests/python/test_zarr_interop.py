@@ -81,3 +81,20 @@ def test_xarray_opens_groups_and_tree(tmp_path):
     assert np.all(np.abs(relative) < 0.02)
     assert abs(relative[1:21].mean() - relative[21:41].mean()) < 0.002
     assert json.loads(json.dumps(tree.attrs["metrics"]))["steps"] > 0
+
+
+def test_a_store_with_a_checkpoint_opens_in_zarr_and_xarray(tmp_path):
+    subprocess.run(
+        [MPM, "run", str(ROOT / "examples" / "vibrating-bar.json"), "--out", str(tmp_path), "-q",
+         "--set", 'output.checkpoint={"steps":100}'],
+        check=True,
+    )
+    store = tmp_path / "vibrating-bar.zarr"
+    g = zarr.open_group(str(store), mode="r")
+    pointer = g.attrs["checkpoint"]
+    assert pointer["step"] == 400 and pointer["frames"] == 37
+    checkpoint = g[pointer["path"]]
+    assert checkpoint["particles.position"].shape == (320 * 2,)
+    assert checkpoint.attrs["state"]["step"] == 400
+    tree = xr.open_datatree(str(store), engine="zarr", consolidated=False)
+    assert tree["checkpoints"]["400"]["particles.mass"].shape == (320,)

@@ -33,8 +33,14 @@ pub struct Cli {
 pub enum Command {
     /// Run a scene locally and write DIR/<name>.zarr.
     Run {
-        /// Scene file (JSON).
-        scene: PathBuf,
+        /// Scene file (JSON); not with --resume.
+        #[arg(required_unless_present = "resume", conflicts_with = "resume")]
+        scene: Option<PathBuf>,
+        /// Continue the run whose result store this is from its latest checkpoint (the
+        /// scene is the one stored; the store is written on in place). Relative particle
+        /// files of the scene are looked up from the current folder.
+        #[arg(long, value_name = "STORE", conflicts_with = "set")]
+        resume: Option<PathBuf>,
         /// Output folder.
         #[arg(long, default_value = "results")]
         out: PathBuf,
@@ -259,19 +265,42 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         },
         Command::Run {
             scene,
+            resume,
             out,
             set,
             json,
             quiet,
         } => {
-            let validated = match load_scene(&scene, &set, &registry) {
-                Ok(v) => v,
-                Err(e) => return Ok(report_load_error(&scene, e)),
+            let (validated, store, scene, checkpoint) = match (scene, resume) {
+                (Some(scene), _) => {
+                    let validated = match load_scene(&scene, &set, &registry) {
+                        Ok(v) => v,
+                        Err(e) => return Ok(report_load_error(&scene, e)),
+                    };
+                    let store = out.join(format!("{}.zarr", validated.scene.name));
+                    (validated, store, scene, None)
+                }
+                (None, Some(store)) => match crate::resume::load(&store, &registry) {
+                    Ok((validated, checkpoint)) => {
+                        (validated, store.clone(), store, Some(checkpoint))
+                    }
+                    Err(status) => return Ok(status),
+                },
+                (None, None) => anyhow::bail!("give a scene file or --resume STORE"),
             };
-            let store = out.join(format!("{}.zarr", validated.scene.name));
-            let mut sink = mpm_io::ZarrSink::new(&store);
             let mut progress = ProgressReporter::new(quiet || json);
-            let result = run_scene(&validated, &mut sink, &mut progress);
+            let result = match &checkpoint {
+                None => run_scene(
+                    &validated,
+                    &mut mpm_io::ZarrSink::new(&store),
+                    &mut progress,
+                ),
+                Some(c) => {
+                    let frames = c.state("frames").as_u64().unwrap_or(0) as usize;
+                    let mut sink = mpm_io::ZarrSink::resume(&store, frames);
+                    mpm_core::solver::resume_scene(&validated, c, &mut sink, &mut progress)
+                }
+            };
             progress.finish();
             let metrics = match result {
                 Ok(m) => m,

@@ -9,6 +9,7 @@ mod overrides;
 mod plot;
 mod progress;
 mod render;
+mod resume;
 pub mod rom;
 mod scene_file;
 mod schema;

@@ -341,6 +341,7 @@ fn a_killed_server_resumes_its_jobs_with_the_same_results() {
     let mut scene = bar_json();
     scene["domain"]["cell_size"] = json!(0.0125);
     scene["solver"]["end_time"] = json!(1.2);
+    scene["output"]["checkpoint"] = json!({"steps": 100});
     let mut server = Server::start(data.path(), &[]);
     let id = submit(&server.url, &scene).json::<Value>().unwrap()["id"]
         .as_str()
@@ -362,6 +363,9 @@ fn a_killed_server_resumes_its_jobs_with_the_same_results() {
     let done = wait_final(&server.url, &id, Duration::from_secs(120));
     assert_eq!(done["status"], "succeeded", "{done}");
     assert_eq!(done["attempts"], 2, "the interrupted job ran again");
+    // From its last checkpoint (taken every 100 steps; killed after step 200).
+    let resumed = done["metrics"]["resumed_from_step"].as_u64();
+    assert!(resumed.is_some_and(|s| s >= 200), "{done}");
     assert_eq!(
         wait_final(&server.url, &queued, Duration::from_secs(60))["status"],
         "succeeded"

@@ -5,6 +5,7 @@
 //! `docs/ARCHITECTURE.md` for the step pipeline.
 
 pub mod boundary;
+pub mod checkpoint;
 pub mod energy_ledger;
 pub mod grid;
 pub mod kernels;

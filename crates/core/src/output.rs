@@ -78,6 +78,14 @@ pub trait OutputSink {
     fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError>;
     /// Called once at the end, also when the run stopped early.
     fn finish(&mut self, metrics: &Metrics) -> Result<(), OutputError>;
+    /// Keeps a checkpoint of the run (replacing the previous one). A sink that keeps no
+    /// checkpoints ignores it.
+    fn write_checkpoint(
+        &mut self,
+        _checkpoint: &crate::checkpoint::Checkpoint,
+    ) -> Result<(), OutputError> {
+        Ok(())
+    }
 }
 
 /// A sink that stores nothing (for tests and benchmarks).
@@ -126,7 +134,7 @@ pub struct Diagnostic {
 }
 
 /// One quantity of a run compared with its reference value.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Comparison {
     /// What is compared (`final_length`).
     pub quantity: String,
@@ -208,6 +216,10 @@ pub struct Metrics {
     pub max_momentum: f64,
     /// Output frames written.
     pub frames: usize,
+    /// The step of the checkpoint this run was resumed from, when it was (`mpm run
+    /// --resume`, or a job whose worker died); everything else is as if it never stopped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resumed_from_step: Option<u64>,
     /// Worker threads used.
     pub threads: usize,
     /// Why the run stopped, when it did.

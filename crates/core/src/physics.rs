@@ -192,7 +192,7 @@ pub struct PhysicsFault {
 
 /// A table of numbers an operator keeps over the run (one row per void, a fill history);
 /// written to the metrics and to the result store's `tables/<name>` array.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Table {
     /// Column names, one per number in a row.
     pub columns: Vec<String>,
@@ -306,6 +306,12 @@ pub trait PhysicsLaw: Send + Sync + 'static {
     fn stable_dt<const D: usize>(&self, _ctx: PhysicsContext<'_, D>) -> f64 {
         f64::INFINITY
     }
+    /// What the operator keeps between steps outside the particle fields and grid scratch
+    /// the core holds, and a checkpoint therefore cannot (`None`: nothing, or only caches
+    /// it rebuilds). A scene asking for checkpoints with such an operator is refused.
+    fn hidden_state(&self) -> Option<&'static str> {
+        None
+    }
     /// Runs one stage.
     fn stage<const D: usize>(&self, stage: Stage, ctx: PhysicsContext<'_, D>);
 }
@@ -320,6 +326,8 @@ pub trait Physics: Send + Sync {
     fn grid_arrays(&self) -> usize;
     /// See [`PhysicsLaw::needs_interpolation`].
     fn needs_interpolation(&self) -> bool;
+    /// See [`PhysicsLaw::hidden_state`].
+    fn hidden_state(&self) -> Option<&'static str>;
     /// 2D stable step.
     fn stable_dt_2d(&self, ctx: PhysicsContext<'_, 2>) -> f64;
     /// 3D stable step.
@@ -342,6 +350,9 @@ impl<T: PhysicsLaw> Physics for T {
     }
     fn needs_interpolation(&self) -> bool {
         PhysicsLaw::needs_interpolation(self)
+    }
+    fn hidden_state(&self) -> Option<&'static str> {
+        PhysicsLaw::hidden_state(self)
     }
     fn stable_dt_2d(&self, ctx: PhysicsContext<'_, 2>) -> f64 {
         self.stable_dt::<2>(ctx)

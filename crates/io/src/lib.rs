@@ -9,12 +9,17 @@
 //! - `diagnostics/<name>`: float64 `[frame]` (energies, max speed, min det F, dt, step)
 //! - `tables/<name>`: float64 `[row, column]`, one chunk, attribute `columns` (tables the
 //!   physics operators kept, such as voids; the group exists only when there are tables)
-//! - root attributes: `scene`, `mpm_version`, `dimension`, `particles`, `metrics`
+//! - `checkpoints/<step>/<array>`: float64 `[index]`, the latest checkpoint (only with
+//!   `output.checkpoint`), its structured state in the group attribute `state`
+//! - root attributes: `scene`, `mpm_version`, `dimension`, `particles`, `metrics`,
+//!   `checkpoint` (where the latest checkpoint is, its step, time and frames)
 
+mod checkpoint_store;
 mod vtk;
 mod zarr_reader;
 mod zarr_writer;
 
+pub use checkpoint_store::read_checkpoint;
 pub use vtk::export_vtk;
 pub use zarr_reader::{ResultStore, TableData, read_particles};
 pub use zarr_writer::ZarrSink;

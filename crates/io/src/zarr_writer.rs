@@ -24,6 +24,8 @@ pub struct ZarrSink {
     diagnostics: Vec<Array<FilesystemStore>>,
     fields: Vec<(Array<FilesystemStore>, Vec<u64>)>,
     frames: u64,
+    /// Continue an existing store after this many frames instead of creating one.
+    resume_after: Option<u64>,
 }
 
 fn zerr(path: &Path, e: impl std::fmt::Display) -> IoError {
@@ -48,7 +50,62 @@ impl ZarrSink {
             diagnostics: Vec::new(),
             fields: Vec::new(),
             frames: 0,
+            resume_after: None,
         }
+    }
+
+    /// A sink that continues the store at `path` after its first `frames` frames (those a
+    /// checkpoint was written after; frames written later by the interrupted run are
+    /// overwritten).
+    pub fn resume(path: impl Into<PathBuf>, frames: usize) -> Self {
+        Self {
+            resume_after: Some(frames as u64),
+            ..Self::new(path)
+        }
+    }
+
+    /// Opens the existing store and cuts its per-frame arrays to `frames` frames.
+    fn reopen(&mut self, info: &RunInfo<'_>, frames: u64) -> Result<(), IoError> {
+        let path = self.path.clone();
+        let store = Arc::new(FilesystemStore::new(&path).map_err(|e| zerr(&path, e))?);
+        let mut root = Group::open(store.clone(), "/").map_err(|e| zerr(&path, e))?;
+        root.attributes_mut()
+            .insert("metrics".into(), serde_json::Value::Null);
+        root.store_metadata().map_err(|e| zerr(&path, e))?;
+        let open = |name: &str| -> Result<Array<FilesystemStore>, IoError> {
+            let array = Array::open(store.clone(), name).map_err(|e| zerr(&path, e))?;
+            if array.shape().first().copied().unwrap_or(0) < frames {
+                return Err(IoError::Layout {
+                    path: path.display().to_string(),
+                    message: format!("{name} has fewer than the checkpoint's {frames} frames"),
+                });
+            }
+            Ok(array)
+        };
+        let mut time = open("/time")?;
+        time.set_shape(vec![frames]).map_err(|e| zerr(&path, e))?;
+        time.store_metadata().map_err(|e| zerr(&path, e))?;
+        self.diagnostics = Vec::new();
+        for name in FRAME_DIAGNOSTICS {
+            let mut array = open(&format!("/diagnostics/{name}"))?;
+            array.set_shape(vec![frames]).map_err(|e| zerr(&path, e))?;
+            array.store_metadata().map_err(|e| zerr(&path, e))?;
+            self.diagnostics.push(array);
+        }
+        self.fields = Vec::new();
+        for field in info.fields {
+            let mut array = open(&format!("/particles/{}", field.name))?;
+            let mut shape = array.shape().to_vec();
+            shape[0] = frames;
+            array.set_shape(shape.clone()).map_err(|e| zerr(&path, e))?;
+            array.store_metadata().map_err(|e| zerr(&path, e))?;
+            self.fields.push((array, shape));
+        }
+        self.time = Some(time);
+        self.frames = frames;
+        self.root = Some(root);
+        self.store = Some(store);
+        Ok(())
     }
 
     /// Where the store is.
@@ -165,7 +222,20 @@ impl ZarrSink {
 
 impl OutputSink for ZarrSink {
     fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
-        self.create(info).map_err(out)
+        match self.resume_after {
+            Some(frames) => self.reopen(info, frames).map_err(out),
+            None => self.create(info).map_err(out),
+        }
+    }
+
+    fn write_checkpoint(
+        &mut self,
+        checkpoint: &mpm_core::checkpoint::Checkpoint,
+    ) -> Result<(), OutputError> {
+        let (Some(store), Some(root)) = (self.store.as_ref(), self.root.as_mut()) else {
+            return Ok(());
+        };
+        crate::checkpoint_store::write(store, root, &self.path, checkpoint).map_err(out)
     }
 
     fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {

@@ -10,7 +10,7 @@
 
 use mpm_core::plugin::Registry;
 use mpm_core::scene::Limits;
-use mpm_core::solver::{Control, Progress, RunError, run_scene};
+use mpm_core::solver::{Control, Progress, RunError};
 use serde::{Deserialize, Serialize};
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -94,7 +94,6 @@ pub fn run_job_process(
         Ok(v) => v,
         Err(e) => return refuse(&mut out, e.to_string()),
     };
-    let mut sink = mpm_io::ZarrSink::new(store);
     let last = Mutex::new((0u64, 0.0f64, 0.0f64));
     let mut next = Instant::now();
     let mut observer = |p: &Progress| {
@@ -114,7 +113,7 @@ pub fn run_job_process(
             Control::Continue
         }
     };
-    let result = run_scene(&validated, &mut sink, &mut observer);
+    let result = crate::resume::run_or_resume(&validated, store, &mut observer);
     let (step, time, wall) = last.lock().map(|l| *l).unwrap_or_default();
     emit(&mut out, &Report::Progress(step, time, wall));
     match result {

@@ -10,6 +10,7 @@ mod child;
 mod db;
 mod error;
 mod metrics;
+mod resume;
 mod users;
 mod worker;
 

@@ -6,7 +6,7 @@
 use crate::State;
 use crate::child::ChildEnd;
 use crate::db::Claimed;
-use mpm_core::solver::{Control, Progress, RunError, run_scene};
+use mpm_core::solver::{Control, Progress, RunError};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -342,7 +342,6 @@ async fn run_in_process(
             Ok(v) => v,
             Err(e) => return ChildEnd::Refused(e.to_string()),
         };
-        let mut sink = mpm_io::ZarrSink::new(&store);
         let mut next = Instant::now();
         let mut observer = |p: &Progress| {
             if Instant::now() >= next {
@@ -356,7 +355,7 @@ async fn run_in_process(
                 Control::Continue
             }
         };
-        match run_scene(&validated, &mut sink, &mut observer) {
+        match crate::resume::run_or_resume(&validated, &store, &mut observer) {
             Ok(m) => ChildEnd::Metrics(serde_json::to_value(&m).unwrap_or_default()),
             Err(RunError::Refused { path, message }) => {
                 ChildEnd::Refused(format!("{path}: {message}"))

@@ -19,7 +19,7 @@ use std::sync::Arc;
 /// k = π/2L. The run starts in that mode with all its energy kinetic; its last frame must
 /// fall on a whole number of periods, where the energy is kinetic again. Error: relative
 /// error of the decay rate measured from the kinetic energy at the first and last frames.
-#[derive(Clone, Copy, Debug, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct KelvinVoigtDecayParams {
     /// Length of the bar, m.
@@ -31,7 +31,7 @@ pub struct KelvinVoigtDecayParams {
 }
 
 /// The kinetic energy at the first frame and the decay rate measured at the last.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct KelvinVoigtDecay {
     expected: f64,
     initial_energy: Option<f64>,

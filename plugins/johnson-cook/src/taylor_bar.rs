@@ -14,7 +14,7 @@ use std::sync::Arc;
 /// Taylor impact: a bar hits a rigid wall; the run compares its final length, the
 /// diameter of its impact face (mushroom) and its peak plastic strain with published
 /// values; error: relative error of the final length.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TaylorBarParams {
     /// Axis of the bar (the impact direction).
@@ -38,7 +38,7 @@ pub struct TaylorBarParams {
 }
 
 /// The bar's shape measured at the last frame.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct TaylorBar {
     p: TaylorBarParams,
     measured: Option<f64>,

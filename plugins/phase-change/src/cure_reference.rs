@@ -12,7 +12,7 @@ use std::sync::Arc;
 /// Isothermal cure with Kamal–Sourour kinetics, m = n = 1, at the rate constants
 /// `k1`, `k2` of the scene's temperature; error: RMS over the output frames of the mean
 /// degree of cure minus the closed form.
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IsothermalCureParams {
     /// Rate constant k1 at the cure temperature, 1/s.
@@ -23,7 +23,7 @@ pub struct IsothermalCureParams {
 
 /// Adiabatic cure: all the heat of reaction stays, so T = T0 + (H/c)·α; error: the
 /// largest |T − T0 − (H/c)·α| over particles and frames, divided by H/c.
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AdiabaticCureParams {
     /// Temperature at t = 0, K.
@@ -35,7 +35,7 @@ pub struct AdiabaticCureParams {
 }
 
 /// The mean cure's squared error accumulated over frames.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct IsothermalCure {
     p: IsothermalCureParams,
     squared_error: f64,
@@ -78,7 +78,7 @@ impl ReferenceLaw for IsothermalCure {
 }
 
 /// The largest energy-balance misfit seen.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct AdiabaticCure {
     p: AdiabaticCureParams,
     largest: Option<f64>,

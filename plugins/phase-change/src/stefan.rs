@@ -16,7 +16,7 @@ use std::sync::Arc;
 /// `surface_temperature`; Neumann's solution puts the front at 2λ√(α_l t). The measured
 /// front is `surface + length × (liquid volume / body volume)`; error: relative L2
 /// error of the front position over the output frames after t = 0.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct StefanParams {
     /// Axis into the body.
@@ -40,7 +40,7 @@ pub struct StefanParams {
 }
 
 /// Thermal properties of one phase in a Stefan reference.
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct StefanPhase {
     /// Thermal conductivity, W/(m K).
@@ -58,7 +58,7 @@ impl StefanPhase {
 }
 
 /// The front position error accumulated over frames.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct Stefan {
     length: f64,
     liquid_diffusivity: f64,

@@ -15,7 +15,7 @@ use std::sync::Arc;
 /// step from `initial_temperature` to `surface_temperature` at t = 0 (Fourier series);
 /// error: RMS temperature error over particles and output frames after t = 0, divided
 /// by the temperature step.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SlabTemperatureParams {
     /// Axis across the slab.
@@ -35,7 +35,7 @@ pub struct SlabTemperatureParams {
 /// A semi-infinite body (deeper than the heat reaches in the run) whose surface at
 /// `surface` steps to `surface_temperature` at t = 0 (erf solution); error as for
 /// `slab_temperature`.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SemiInfiniteTemperatureParams {
     /// Axis into the body.
@@ -51,14 +51,14 @@ pub struct SemiInfiniteTemperatureParams {
 }
 
 /// Which closed form a [`TemperatureError`] compares with.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 enum Geometry {
     Slab(SlabTemperatureParams),
     SemiInfinite(SemiInfiniteTemperatureParams),
 }
 
 /// Squared temperature errors over particles and frames, each relative to the step.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct TemperatureError {
     geometry: Geometry,
     error: RelativeL2,

@@ -16,7 +16,7 @@ use std::sync::Arc;
 /// gap volume)` from the shared particle field `fill` of the particles in the gap; error:
 /// relative L2 error of the front over the output frames after t = 0. The comparison
 /// `fill_time` appears once the front reached the end.
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CapillaryFillingParams {
     /// Axis along the gap (the flow direction).
@@ -36,7 +36,7 @@ pub struct CapillaryFillingParams {
 }
 
 /// The front error accumulated over frames, and the front history until the gap filled.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct CapillaryFilling {
     p: CapillaryFillingParams,
     error: RelativeL2,

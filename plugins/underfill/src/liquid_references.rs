@@ -15,7 +15,7 @@ use std::sync::Arc;
 /// Comparisons: `bottom_pressure` (the deepest particle's pressure against ρgh) and
 /// `spurious_speed` (the largest particle speed, against the gravity-wave speed √(g·depth)
 /// of the tank: its relative difference + 1 is the spurious speed in that unit).
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct HydrostaticParams {
     /// Vertical axis (gravity points along −axis).
@@ -30,7 +30,7 @@ pub struct HydrostaticParams {
     pub gravity: f64,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct Hydrostatic {
     p: HydrostaticParams,
     error: Option<f64>,
@@ -162,7 +162,7 @@ pub fn martin_moyce_front(t: f64) -> Option<f64> {
 /// back and below): the surge front against Martin & Moyce (1952). The measured front is
 /// the largest particle coordinate along `axis`, less `wall`, over a; error: relative L2
 /// error of Z over the output frames whose T lies within the data (0.41 ≤ T ≤ 3.33).
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DamBreakParams {
     /// Axis the front runs along.
@@ -175,7 +175,7 @@ pub struct DamBreakParams {
     pub gravity: f64,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct DamBreak {
     p: DamBreakParams,
     error: RelativeL2,

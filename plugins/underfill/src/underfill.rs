@@ -381,6 +381,10 @@ impl Underfill {
 }
 
 impl PhysicsLaw for Underfill {
+    fn hidden_state(&self) -> Option<&'static str> {
+        Some("its cell state (fill fractions, front, voids)")
+    }
+
     fn fields(&self) -> Vec<SharedFieldSpec> {
         FIELDS
             .iter()

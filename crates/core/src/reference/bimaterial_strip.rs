@@ -21,7 +21,7 @@ use serde::Deserialize;
 use std::sync::Arc;
 
 /// Parameters of the `bimaterial_strip` reference.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BimaterialStripParams {
     /// Axis along the strip.
@@ -77,7 +77,7 @@ pub fn bimaterial_curvature(
         / (h * (3.0 * (1.0 + m).powi(2) + (1.0 + m * n) * (m * m + 1.0 / (m * n))))
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct BimaterialStrip {
     p: BimaterialStripParams,
     expected: f64,

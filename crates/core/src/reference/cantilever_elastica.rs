@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 /// Static tip deflection of a cantilever under its own weight, from the large-deflection
 /// elastica; error: relative error of the tip deflection at the end time.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CantileverElasticaParams {
     /// Axis along the beam (0 = x); gravity acts along the other in-plane axis.
@@ -30,7 +30,7 @@ pub struct CantileverElasticaParams {
 }
 
 /// The tip deflection measured at the last frame against the elastica's.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct CantileverElastica {
     axis: usize,
     clamped_end: f64,

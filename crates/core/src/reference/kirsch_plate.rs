@@ -25,7 +25,7 @@ use serde::Deserialize;
 use std::sync::Arc;
 
 /// Parameters of the `kirsch_plate` reference.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct KirschPlateParams {
     /// Centre of the hole, m.
@@ -62,7 +62,7 @@ pub fn kirsch_stress_along_load(hole_radius: f64, r: f64, theta: f64) -> f64 {
     rr * c * c + tt * s * s - 2.0 * rt * s * c
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct KirschPlate {
     p: KirschPlateParams,
     /// (nominal stress, relative L2 error, peak stress concentration and Kirsch's at the

@@ -38,7 +38,11 @@ pub struct Frame<'a, const D: usize> {
 /// What a reference author writes: the error measure of one run, accumulated frame by
 /// frame. The value built from the scene is the state before any frame; every run starts
 /// from a clone of it.
-pub trait ReferenceLaw: Clone + Send + Sync + 'static {
+/// Its state is serde data, so a checkpoint keeps the error accumulated so far and a
+/// resumed run reports the same error as an uninterrupted one.
+pub trait ReferenceLaw:
+    Clone + Send + Sync + serde::Serialize + serde::de::DeserializeOwned + 'static
+{
     /// What the error measures, in words, for the metrics (`error_kind`).
     fn kind(&self) -> &'static str;
     /// Whether [`Frame::particles`] must carry each particle's initial position.
@@ -83,6 +87,10 @@ pub trait Reference: Send + Sync {
     fn measured(&self) -> Option<f64>;
     /// See [`ReferenceLaw::comparisons`].
     fn comparisons(&self) -> Vec<Comparison>;
+    /// The state accumulated so far, for a checkpoint.
+    fn save_state(&self) -> serde_json::Value;
+    /// Takes back the state [`Reference::save_state`] gave.
+    fn restore_state(&mut self, state: serde_json::Value) -> Result<(), String>;
 }
 
 impl<T: ReferenceLaw> Reference for T {
@@ -112,6 +120,13 @@ impl<T: ReferenceLaw> Reference for T {
     }
     fn comparisons(&self) -> Vec<Comparison> {
         ReferenceLaw::comparisons(self)
+    }
+    fn save_state(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+    }
+    fn restore_state(&mut self, state: serde_json::Value) -> Result<(), String> {
+        *self = serde_json::from_value(state).map_err(|e| e.to_string())?;
+        Ok(())
     }
 }
 
@@ -182,7 +197,7 @@ pub fn core_references() -> Vec<Box<dyn ReferenceFactory>> {
 }
 
 /// A relative L2 error accumulated over frames: sqrt(Σ error² / Σ reference²).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct RelativeL2 {
     numerator: f64,
     denominator: f64,

@@ -13,7 +13,7 @@ use std::sync::Arc;
 /// The measured velocity is the shared particle field `flow_velocity_x`, `_y` or `_z`
 /// for `axis` 0, 1 or 2; error: RMS velocity error over particles and output frames
 /// after t = 0, divided by the steady centre-line velocity `G h²/(8μ)`.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoiseuilleStartupParams {
     /// Axis of the flow (the direction of the pressure drop).
@@ -33,7 +33,7 @@ pub struct PoiseuilleStartupParams {
 }
 
 /// The velocity error accumulated over frames.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct PoiseuilleStartup {
     p: PoiseuilleStartupParams,
     squared_error: f64,

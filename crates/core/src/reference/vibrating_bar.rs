@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 /// First axial mode of a fixed–free elastic bar; error: relative L2 error of particle
 /// displacement over all output frames.
-#[derive(Clone, Debug, Deserialize, schemars::JsonSchema)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct VibratingBarParams {
     /// Axis of the bar.
@@ -28,7 +28,7 @@ pub struct VibratingBarParams {
 }
 
 /// The bar's displacement error accumulated over frames.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct VibratingBar {
     p: VibratingBarParams,
     error: RelativeL2,

@@ -24,7 +24,7 @@ pub use budget::{Estimate, Limits, estimate};
 pub use contact::{CohesiveLaw, ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};
 pub use domain::{Contact, Domain, Side, Wall};
 pub use obstacle::{Obstacle, ObstacleShape};
-pub use output::{Output, StopCriteria};
+pub use output::{CheckpointSchedule, Output, StopCriteria};
 pub use solver_settings::{
     AntiLocking, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName, KrylovMethod,
     Mechanics, Scheme, Solver, TangentMethod, Transfer,

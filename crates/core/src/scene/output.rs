@@ -16,6 +16,23 @@ pub struct Output {
     /// plus any field a material declares.
     #[serde(default = "default_fields")]
     pub fields: Vec<String>,
+    /// Checkpoints of the whole state, so `mpm run --resume STORE` can continue the run
+    /// (only the last one is kept in the store).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<CheckpointSchedule>,
+}
+
+/// When a run writes a checkpoint: every `steps` steps, or every `time` seconds of
+/// simulated time (at the end of the first step that reaches it), or both.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CheckpointSchedule {
+    /// Steps between checkpoints.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steps: Option<u64>,
+    /// Simulated time between checkpoints, seconds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
 }
 
 fn default_frames() -> u32 {
@@ -30,6 +47,7 @@ impl Default for Output {
         Self {
             frames: default_frames(),
             fields: default_fields(),
+            checkpoint: None,
         }
     }
 }
@@ -72,6 +90,19 @@ impl Output {
     pub(super) fn validate(&self, v: &mut Validator) {
         if self.frames == 0 {
             v.err("output.frames", "must be at least 1");
+        }
+        if let Some(c) = &self.checkpoint {
+            match (c.steps, c.time) {
+                (None, None) => v.err(
+                    "output.checkpoint",
+                    "give `steps` (steps between checkpoints) or `time` (seconds between them)",
+                ),
+                (Some(0), _) => v.err("output.checkpoint.steps", "must be at least 1"),
+                _ => {}
+            }
+            if let Some(t) = c.time {
+                v.positive("output.checkpoint.time", t);
+            }
         }
     }
 }

@@ -102,6 +102,19 @@ pub fn parse_scene_value_limited(
     let materials = v.build_materials(&scene, registry);
     let physics = v.build_physics(&scene, registry, &materials);
     v.check_output_fields(&scene, &materials, &physics);
+    if scene.output.checkpoint.is_some() {
+        for (name, p) in &physics {
+            if let Some(what) = p.hidden_state() {
+                v.err(
+                    "output.checkpoint",
+                    format!(
+                        "physics `{name}` keeps {what} between steps, which checkpoints do not \
+                         hold yet: a resumed run could not continue it (remove output.checkpoint)"
+                    ),
+                );
+            }
+        }
+    }
     let bodies = if v.issues.is_empty() {
         v.generate_bodies(&scene, registry, base_dir)
     } else {

@@ -112,8 +112,15 @@ impl Reorder {
         }
     }
 
-    /// Sorts every group's particles by the index of the cell they lie in.
-    pub fn apply<const D: usize>(&mut self, grid: &Grid<D>, p: &mut Particles<D>) {
+    /// Sorts every group's particles by the index of the cell they lie in; `per_particle`
+    /// (one number per particle, or empty) is solver state kept outside the particles that
+    /// must follow them (the free strain the stress last applied).
+    pub fn apply<const D: usize>(
+        &mut self,
+        grid: &Grid<D>,
+        p: &mut Particles<D>,
+        per_particle: &mut [f64],
+    ) {
         let (origin, inv_dx) = (grid.origin, grid.inv_dx);
         let cell_key = |x: &Vector<D>| -> u64 {
             let mut key = 0u64;
@@ -160,6 +167,9 @@ impl Reorder {
             }
             for field in p.shared.all_mut() {
                 gather(&mut field[r.clone()], perm, visited);
+            }
+            if per_particle.len() == p.position.len() {
+                gather(&mut per_particle[r.clone()], perm, visited);
             }
             let group = &mut p.groups[g];
             let n = range.len();

@@ -448,6 +448,83 @@ where
     }
 }
 
+impl<const D: usize> Cohesive<D> {
+    /// Writes the interface nodes' state and the running totals into a checkpoint.
+    pub(crate) fn save(&self, c: &mut crate::checkpoint::Checkpoint) {
+        let nodes = &self.nodes;
+        c.put(
+            "cohesive.pair",
+            nodes
+                .iter()
+                .flat_map(|n| [n.pair[0] as f64, n.pair[1] as f64])
+                .collect(),
+        );
+        c.put(
+            "cohesive.role",
+            nodes
+                .iter()
+                .map(|n| match n.role {
+                    NodeRole::None => 0.0,
+                    NodeRole::Bonded => 1.0,
+                    NodeRole::Precracked => 2.0,
+                })
+                .collect(),
+        );
+        c.put("cohesive.area", nodes.iter().map(|n| n.area).collect());
+        c.put(
+            "cohesive.opening",
+            nodes
+                .iter()
+                .flat_map(|n| n.opening.iter().copied())
+                .collect(),
+        );
+        c.put("cohesive.damage", nodes.iter().map(|n| n.damage).collect());
+        c.put(
+            "cohesive.totals",
+            vec![
+                if self.bonded { 1.0 } else { 0.0 },
+                self.dissipated,
+                self.damaged as f64,
+                self.failed as f64,
+                self.debonded,
+                self.interface,
+            ],
+        );
+    }
+
+    /// Takes back what [`Cohesive::save`] wrote.
+    pub(crate) fn restore(
+        &mut self,
+        c: &crate::checkpoint::Checkpoint,
+    ) -> Result<(), crate::checkpoint::CheckpointError> {
+        let n = self.nodes.len();
+        let pair = c.get("cohesive.pair", 2 * n)?;
+        let role = c.get("cohesive.role", n)?;
+        let area = c.get("cohesive.area", n)?;
+        let opening = c.get("cohesive.opening", D * n)?;
+        let damage = c.get("cohesive.damage", n)?;
+        for (i, node) in self.nodes.iter_mut().enumerate() {
+            node.pair = [pair[2 * i] as u8, pair[2 * i + 1] as u8];
+            node.role = match role[i] as u8 {
+                1 => NodeRole::Bonded,
+                2 => NodeRole::Precracked,
+                _ => NodeRole::None,
+            };
+            node.area = area[i];
+            node.opening = Vector::<D>::from_column_slice(&opening[D * i..D * (i + 1)]);
+            node.damage = damage[i];
+        }
+        let t = c.get("cohesive.totals", 6)?;
+        self.bonded = t[0] != 0.0;
+        self.dissipated = t[1];
+        self.damaged = t[2] as usize;
+        self.failed = t[3] as usize;
+        self.debonded = t[4];
+        self.interface = t[5];
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

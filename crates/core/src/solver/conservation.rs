@@ -135,3 +135,44 @@ impl Tracker {
         }
     }
 }
+
+impl Tracker {
+    /// Appends the tracker's numbers to a checkpoint's scalars.
+    pub fn save(&self, out: &mut crate::checkpoint::Scalars) {
+        let s = &self.start;
+        out.push(&[s.mass]);
+        out.push(&s.momentum);
+        out.push(&[s.momentum_scale]);
+        out.push(&s.angular);
+        out.push(&[
+            s.angular_scale,
+            self.mass,
+            self.momentum,
+            self.angular,
+            self.momentum_scale,
+            self.angular_scale,
+        ]);
+    }
+
+    /// Reads what [`Tracker::save`] wrote.
+    pub fn load(
+        input: &mut crate::checkpoint::Scalars,
+    ) -> Result<Self, crate::checkpoint::CheckpointError> {
+        let start = Totals {
+            mass: input.take()?,
+            momentum: input.take_n()?,
+            momentum_scale: input.take()?,
+            angular: input.take_n()?,
+            angular_scale: input.take()?,
+        };
+        let [mass, momentum, angular, momentum_scale, angular_scale] = input.take_n()?;
+        Ok(Self {
+            start,
+            mass,
+            momentum,
+            angular,
+            momentum_scale,
+            angular_scale,
+        })
+    }
+}

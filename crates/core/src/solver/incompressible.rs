@@ -210,6 +210,12 @@ where
         self.pressure_to_particles(sim);
     }
 
+    /// The pressure solve is warm-started from the last pressure; a resumed run starts it
+    /// cold, so the run that writes the checkpoint does too.
+    fn save(&mut self, _checkpoint: &mut crate::checkpoint::Checkpoint) {
+        self.pressure.iter_mut().for_each(|p| *p = 0.0);
+    }
+
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
         let dx = sim.grid.dx;
         // Velocity CFL, with the speed gravity adds within one step so that a liquid at

@@ -14,6 +14,7 @@
 //!   delaminate), `contact_step` (the USL step that uses them).
 
 mod binning;
+mod checkpointing;
 mod cohesive;
 mod conservation;
 mod contact;
@@ -201,6 +202,38 @@ pub fn run_scene(
         }
     }
     dispatch(scene, Run { sink, observer })
+}
+
+/// Continues a run of `scene` from `checkpoint` (the latest one its store holds) to the
+/// end time; `sink` continues the store after the checkpoint's frames.
+pub fn resume_scene(
+    scene: &ValidatedScene,
+    checkpoint: &crate::checkpoint::Checkpoint,
+    sink: &mut dyn OutputSink,
+    observer: &mut dyn RunObserver,
+) -> Result<Metrics, RunError> {
+    struct Resume<'a> {
+        checkpoint: &'a crate::checkpoint::Checkpoint,
+        sink: &'a mut dyn OutputSink,
+        observer: &'a mut dyn RunObserver,
+    }
+    impl SimulationVisitor for Resume<'_> {
+        type Output = Result<Metrics, RunError>;
+        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
+        where
+            dyn Material: DimensionDispatch<D>,
+        {
+            sim.resume(self.sink, self.observer, self.checkpoint)
+        }
+    }
+    dispatch(
+        scene,
+        Resume {
+            checkpoint,
+            sink,
+            observer,
+        },
+    )
 }
 
 /// Checks what only the built simulation can tell (the fixed time step against the stable

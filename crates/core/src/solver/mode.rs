@@ -10,6 +10,7 @@ use super::incompressible::Incompressible;
 use super::mechanics_off::MechanicsOff;
 use super::quasi_static::QuasiStatic;
 use super::simulation::Simulation;
+use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::scene::Mechanics;
@@ -21,6 +22,13 @@ pub(crate) trait StepMode<const D: usize, K: Kernel>: Send {
     /// The largest stable step for the current state at Courant number 1 (infinite when
     /// nothing in the mode bounds it).
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64;
+    /// Writes what the mode keeps from step to step into a checkpoint (and drops caches it
+    /// would rebuild after a resume, so the run goes on as a resumed one does).
+    fn save(&mut self, _checkpoint: &mut Checkpoint) {}
+    /// Takes back what [`StepMode::save`] wrote.
+    fn restore(&mut self, _checkpoint: &Checkpoint) -> Result<(), CheckpointError> {
+        Ok(())
+    }
 }
 
 /// The mode the scene's `solver.mechanics` asks for.

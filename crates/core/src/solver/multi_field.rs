@@ -204,3 +204,29 @@ impl<const D: usize> MultiField<D> {
         }
     }
 }
+
+impl<const D: usize> MultiField<D> {
+    /// Writes what contact keeps from step to step (friction work, whether bodies touched,
+    /// the bonded interfaces) into a checkpoint.
+    pub(crate) fn save(&self, c: &mut crate::checkpoint::Checkpoint) {
+        let touching = if self.touching { 1.0 } else { 0.0 };
+        c.put("contact.totals", vec![self.dissipated, touching]);
+        if let Some(cohesive) = &self.cohesive {
+            cohesive.save(c);
+        }
+    }
+
+    /// Takes back what [`MultiField::save`] wrote.
+    pub(crate) fn restore(
+        &mut self,
+        c: &crate::checkpoint::Checkpoint,
+    ) -> Result<(), crate::checkpoint::CheckpointError> {
+        let t = c.get("contact.totals", 2)?;
+        self.dissipated = t[0];
+        self.touching = t[1] != 0.0;
+        if let Some(cohesive) = &mut self.cohesive {
+            cohesive.restore(c)?;
+        }
+        Ok(())
+    }
+}

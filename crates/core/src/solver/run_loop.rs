@@ -8,6 +8,7 @@ use super::simulation::Simulation;
 use super::stats::ParticleFault;
 use super::volume_averaging::VolumeAverage;
 use super::{Control, DimensionDispatch, Progress, RunError, RunObserver};
+use crate::checkpoint::{CHECKPOINT_FORMAT, Checkpoint, CheckpointError, Scalars};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{
@@ -212,7 +213,37 @@ where
         sink: &mut dyn OutputSink,
         observer: &mut dyn RunObserver,
     ) -> Result<Metrics, RunError> {
-        self.preflight()?;
+        self.run_from(sink, observer, None)
+    }
+
+    /// Continues a run from `checkpoint` (written by this scene's run) to the end time;
+    /// `sink` must continue the store after the checkpoint's frames.
+    pub fn resume(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        observer: &mut dyn RunObserver,
+        checkpoint: &Checkpoint,
+    ) -> Result<Metrics, RunError> {
+        self.run_from(sink, observer, Some(checkpoint))
+    }
+
+    fn run_from(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        observer: &mut dyn RunObserver,
+        checkpoint: Option<&Checkpoint>,
+    ) -> Result<Metrics, RunError> {
+        let resumed_from_step = checkpoint.map(|c| c.state("step").as_u64().unwrap_or(0));
+        let mut run = match checkpoint {
+            None => {
+                self.preflight()?;
+                None
+            }
+            Some(c) => {
+                self.restore_state(c).map_err(resume_error)?;
+                Some(LoopState::load(c).map_err(resume_error)?)
+            }
+        };
         let n = self.particles.len();
         sink.begin(&RunInfo {
             name: &self.name,
@@ -224,20 +255,29 @@ where
         let start = Instant::now();
         let end_time = self.settings.end_time;
         let frame_dt = end_time / self.settings.frames as f64;
-        let mut frame = 0usize;
         let mut dt;
-        let start_totals = self.write_frame(sink, frame, 0.0)?;
-        self.observe_reference(false);
-        frame += 1;
         let affine_inertia = self.affine_inertia();
-        let mut conservation = Tracker::new(start_totals);
+        let mut run = match run.take() {
+            Some(run) => run,
+            None => {
+                let start_totals = self.write_frame(sink, 0, 0.0)?;
+                self.observe_reference(false);
+                LoopState {
+                    frame: 1,
+                    conservation: Tracker::new(start_totals),
+                    mechanical_max: self.kinematics.kinetic_energy
+                        + self.stresses.batch.strain_energy,
+                    drift: 0.0,
+                    max_drift: 0.0,
+                    min_det: self.kinematics.min_det_f,
+                    max_speed: self.kinematics.max_speed,
+                    max_momentum: self.kinematics.momentum.norm(),
+                    wall_before: 0.0,
+                    checkpoint_slot: 0,
+                }
+            }
+        };
         let energy0 = self.energy0;
-        let mut mechanical_max = self.kinematics.kinetic_energy + self.stresses.batch.strain_energy;
-        let mut drift = 0.0f64;
-        let mut max_drift = 0.0f64;
-        let mut min_det = self.kinematics.min_det_f;
-        let mut max_speed = self.kinematics.max_speed;
-        let mut max_momentum = self.kinematics.momentum.norm();
         let mut outcome = Outcome::Finished;
         let mut diagnostic = None;
         let eps = 1e-9 * frame_dt;
@@ -281,28 +321,29 @@ where
                 break;
             }
             // Land exactly on output times.
-            let next_frame_time = (frame as f64 * frame_dt).min(end_time);
+            let next_frame_time = (run.frame as f64 * frame_dt).min(end_time);
             if self.time + dt > next_frame_time - eps {
                 dt = next_frame_time - self.time;
             }
             self.step(dt);
             let k = &self.kinematics;
             let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
-            mechanical_max = mechanical_max.max(mechanical);
+            run.mechanical_max = run.mechanical_max.max(mechanical);
             // Energy balance: what the bodies gained beyond the work done on them from outside
             // and the energy physical causes dissipated (the ledger): the method's error.
             let energy = self.total_energy() - self.ledger.net_input();
-            drift = if mechanical_max > 0.0 {
-                (energy - energy0) / mechanical_max
+            run.drift = if run.mechanical_max > 0.0 {
+                (energy - energy0) / run.mechanical_max
             } else {
                 0.0
             };
-            if drift.is_finite() {
-                max_drift = max_drift.max(drift.abs());
+            if run.drift.is_finite() {
+                run.max_drift = run.max_drift.max(run.drift.abs());
             }
-            min_det = min_det.min(k.min_det_f);
-            max_speed = max_speed.max(k.max_speed);
-            max_momentum = max_momentum.max(k.momentum.norm());
+            run.min_det = run.min_det.min(k.min_det_f);
+            run.max_speed = run.max_speed.max(k.max_speed);
+            run.max_momentum = run.max_momentum.max(k.momentum.norm());
+            let drift = run.drift;
             if let Some(d) = self.check(if drift.is_nan() { f64::INFINITY } else { drift }) {
                 outcome = Outcome::Stopped;
                 diagnostic = Some(d);
@@ -310,24 +351,42 @@ where
             }
             if self.time >= next_frame_time - eps {
                 let last = self.time >= end_time - eps;
-                let now = self.write_frame(sink, frame, dt)?;
+                let now = self.write_frame(sink, run.frame, dt)?;
                 self.observe_reference(last);
-                conservation.observe(now);
-                frame += 1;
+                run.conservation.observe(now);
+                run.frame += 1;
+            }
+            if self.checkpoint_due(&mut run) {
+                let mut c = Checkpoint::default();
+                let wall = run.wall_before + start.elapsed().as_secs_f64();
+                run.save(&mut c, wall);
+                self.save_state(&mut c);
+                sink.write_checkpoint(&c)?;
             }
             let progress = Progress {
                 step: self.steps,
                 time: self.time,
                 end_time,
                 dt,
-                wall_seconds: start.elapsed().as_secs_f64(),
+                wall_seconds: run.wall_before + start.elapsed().as_secs_f64(),
             };
             if observer.progress(&progress) == Control::Cancel {
                 outcome = Outcome::Cancelled;
                 break;
             }
         }
-        let wall = start.elapsed().as_secs_f64();
+        let LoopState {
+            frame,
+            conservation,
+            drift,
+            max_drift,
+            min_det,
+            max_speed,
+            max_momentum,
+            wall_before,
+            ..
+        } = run;
+        let wall = wall_before + start.elapsed().as_secs_f64();
         let metrics = Metrics {
             outcome: Some(outcome),
             wall_seconds: wall,
@@ -368,6 +427,7 @@ where
                 self.settings.transfer != Transfer::Apic || affine_inertia.is_some(),
             ),
             frames: frame,
+            resumed_from_step,
             threads: rayon::current_num_threads(),
             diagnostic,
             physics: self.report.maxima.iter().cloned().collect(),
@@ -375,5 +435,112 @@ where
         };
         sink.finish(&metrics)?;
         Ok(metrics)
+    }
+}
+
+/// The run loop's running figures, kept in checkpoints.
+struct LoopState {
+    /// The next output frame's index.
+    frame: usize,
+    conservation: Tracker,
+    mechanical_max: f64,
+    drift: f64,
+    max_drift: f64,
+    min_det: f64,
+    max_speed: f64,
+    max_momentum: f64,
+    /// Wall seconds spent before this process took the run up.
+    wall_before: f64,
+    /// The last `time / output.checkpoint.time` interval a checkpoint was written in.
+    checkpoint_slot: u64,
+}
+
+impl LoopState {
+    fn save(&self, c: &mut Checkpoint, wall: f64) {
+        let mut s = Scalars::new();
+        s.push(&[self.frame as f64]);
+        self.conservation.save(&mut s);
+        s.push(&[
+            self.mechanical_max,
+            self.drift,
+            self.max_drift,
+            self.min_det,
+            self.max_speed,
+            self.max_momentum,
+            wall,
+            self.checkpoint_slot as f64,
+        ]);
+        c.put("run.scalars", s.into_vec());
+        c.set_state("format", CHECKPOINT_FORMAT.into());
+        c.set_state("frames", self.frame.into());
+    }
+
+    fn load(c: &Checkpoint) -> Result<Self, CheckpointError> {
+        if c.state("format").as_u64() != Some(CHECKPOINT_FORMAT as u64) {
+            return Err(CheckpointError::Invalid(format!(
+                "written in checkpoint format {}, this version reads {CHECKPOINT_FORMAT}",
+                c.state("format")
+            )));
+        }
+        let all = c
+            .arrays
+            .get("run.scalars")
+            .ok_or_else(|| CheckpointError::Missing("run.scalars".into()))?;
+        let mut s = Scalars::reading(all);
+        let frame = s.take()? as usize;
+        let conservation = Tracker::load(&mut s)?;
+        let [
+            mechanical_max,
+            drift,
+            max_drift,
+            min_det,
+            max_speed,
+            max_momentum,
+            wall_before,
+            slot,
+        ] = s.take_n()?;
+        Ok(Self {
+            frame,
+            conservation,
+            mechanical_max,
+            drift,
+            max_drift,
+            min_det,
+            max_speed,
+            max_momentum,
+            wall_before,
+            checkpoint_slot: slot as u64,
+        })
+    }
+}
+
+fn resume_error(e: CheckpointError) -> RunError {
+    RunError::Refused {
+        path: "checkpoint".into(),
+        message: e.to_string(),
+    }
+}
+
+impl<const D: usize, K: Kernel> Simulation<D, K>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    /// Whether the scene's checkpoint schedule asks for one after this step.
+    fn checkpoint_due(&self, run: &mut LoopState) -> bool {
+        let Some(schedule) = self.settings.checkpoint else {
+            return false;
+        };
+        let by_steps = schedule
+            .steps
+            .is_some_and(|n| n > 0 && self.steps.is_multiple_of(n));
+        let mut by_time = false;
+        if let Some(t) = schedule.time.filter(|t| *t > 0.0) {
+            let slot = (self.time / t * (1.0 + 1e-12)).floor() as u64;
+            if slot > run.checkpoint_slot {
+                run.checkpoint_slot = slot;
+                by_time = true;
+            }
+        }
+        by_steps || by_time
     }
 }

@@ -192,6 +192,7 @@ where
             damping: s.solver.damping,
             sort_interval: s.solver.sort_interval,
             frames: s.output.frames,
+            checkpoint: s.output.checkpoint,
             max_speed: s.stop.max_speed,
             max_energy_growth: s.stop.max_energy_growth,
             min_dt: s.stop.min_dt,

@@ -49,6 +49,7 @@ pub(super) struct Settings<const D: usize> {
     pub(super) damping: f64,
     pub(super) sort_interval: u32,
     pub(super) frames: u32,
+    pub(super) checkpoint: Option<crate::scene::CheckpointSchedule>,
     pub(super) max_speed: Option<f64>,
     pub(super) max_energy_growth: f64,
     pub(super) min_dt: f64,
@@ -238,7 +239,8 @@ where
     pub(super) fn reorder_if_due(&mut self) {
         let sort = self.settings.sort_interval;
         if sort > 0 && self.sort_counter.is_multiple_of(sort as u64) {
-            self.reorder.apply(&self.grid, &mut self.particles);
+            let applied = self.stress_scratch.applied_mut();
+            self.reorder.apply(&self.grid, &mut self.particles, applied);
         }
         self.sort_counter += 1;
     }

@@ -51,6 +51,31 @@ impl<const D: usize> StressScratch<D> {
     pub fn applied_mut(&mut self) -> &mut Vec<f64> {
         &mut self.applied
     }
+
+    /// Writes what the next update reads of the last one into a checkpoint.
+    pub fn save(&self, c: &mut crate::checkpoint::Checkpoint) {
+        c.put("stress.applied_free_strain", self.applied.clone());
+        c.put("stress.group_wave_speed", self.group_wave_speed.clone());
+    }
+
+    /// Takes back what [`StressScratch::save`] wrote.
+    pub fn restore(
+        &mut self,
+        c: &crate::checkpoint::Checkpoint,
+    ) -> Result<(), crate::checkpoint::CheckpointError> {
+        for (name, target) in [
+            ("stress.applied_free_strain", &mut self.applied),
+            ("stress.group_wave_speed", &mut self.group_wave_speed),
+        ] {
+            let values = c
+                .arrays
+                .get(name)
+                .ok_or_else(|| crate::checkpoint::CheckpointError::Missing(name.into()))?;
+            target.clear();
+            target.extend_from_slice(values);
+        }
+        Ok(())
+    }
 }
 
 /// Runs every material on its particles.

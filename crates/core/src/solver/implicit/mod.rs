@@ -24,6 +24,7 @@ use super::DimensionDispatch;
 use super::mode::StepMode;
 use super::particle_to_grid::ForceTerm;
 use super::simulation::Simulation;
+use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::physics::{FREE_STRAIN, PhysicsFault};
@@ -137,6 +138,35 @@ where
 
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
         sim.physics_dt
+    }
+
+    fn save(&mut self, c: &mut Checkpoint) {
+        let t = &self.totals;
+        let numbers = [
+            t.steps,
+            t.newton,
+            t.krylov,
+            t.factorisations,
+            t.cuts,
+            t.max_newton as u64,
+        ];
+        c.put(
+            "implicit.totals",
+            numbers.iter().map(|&v| v as f64).collect(),
+        );
+    }
+
+    fn restore(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
+        let t = c.get("implicit.totals", 6)?;
+        self.totals = Totals {
+            steps: t[0] as u64,
+            newton: t[1] as u64,
+            krylov: t[2] as u64,
+            factorisations: t[3] as u64,
+            cuts: t[4] as u64,
+            max_newton: t[5] as u32,
+        };
+        Ok(())
     }
 }
 

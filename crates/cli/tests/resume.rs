@@ -1,0 +1,285 @@
+//! Checkpoints and `mpm run --resume`: a run continued from its latest checkpoint writes
+//! the same results, bit for bit, as the run never interrupted (frames, diagnostics, tables
+//! and metrics but the wall-clock figures), for every solver mode and the state each
+//! physics keeps: a reference's running error, Johnson–Cook's plastic state and damage,
+//! temperatures and phase fractions, friction work, cohesive interface damage. One run is
+//! killed (SIGKILL) in the middle and resumed.
+
+mod common;
+
+use common::{example, mpm, text};
+use mpm_io::ResultStore;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Asserts that two stores hold the same numbers: every frame of every particle field, the
+/// times, every diagnostic, every table and the metrics but wall-clock figures.
+fn assert_same_results(a: &Path, b: &Path) {
+    let (sa, sb) = (ResultStore::open(a).unwrap(), ResultStore::open(b).unwrap());
+    let (ta, tb) = (sa.times().unwrap(), sb.times().unwrap());
+    assert_eq!(bits(&ta), bits(&tb), "output times differ");
+    for name in mpm_core::output::FRAME_DIAGNOSTICS {
+        let (x, y) = (sa.diagnostic(name).unwrap(), sb.diagnostic(name).unwrap());
+        assert_eq!(bits(&x), bits(&y), "diagnostic {name} differs");
+    }
+    let fields = sa.fields().unwrap();
+    assert_eq!(fields, sb.fields().unwrap());
+    for field in &fields {
+        for frame in 0..ta.len() as u64 {
+            let (x, y) = (
+                sa.frame(field, frame).unwrap().1,
+                sb.frame(field, frame).unwrap().1,
+            );
+            assert!(
+                bits(&x) == bits(&y),
+                "{field} differs at frame {frame} (largest difference {:e})",
+                x.iter()
+                    .zip(&y)
+                    .map(|(p, q)| (p - q).abs())
+                    .fold(0.0, f64::max)
+            );
+        }
+    }
+    let metrics = |s: &ResultStore| {
+        let mut m = s.attributes()["metrics"].clone();
+        let object = m.as_object_mut().expect("metrics written");
+        object.remove("wall_seconds");
+        object.remove("particle_steps_per_second");
+        object.remove("resumed_from_step");
+        m
+    };
+    assert_eq!(metrics(&sa), metrics(&sb), "metrics differ");
+}
+
+fn bits(values: &[f64]) -> Vec<u64> {
+    values.iter().map(|v| v.to_bits()).collect()
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.path().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
+
+/// The store's latest checkpoint attribute, if any (read from the file, as a watcher would).
+fn checkpoint_of(store: &Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(store.join("zarr.json")).ok()?;
+    let root: serde_json::Value = serde_json::from_str(&text).ok()?;
+    root["attributes"].get("checkpoint").cloned()
+}
+
+/// Runs `example` with `overrides` and checkpoints every `every` steps to the end, resumes a
+/// copy of its store from the latest checkpoint, and compares the two. Returns the
+/// temporary folder and the uninterrupted store.
+fn resumed_equals_uninterrupted(
+    example_name: &str,
+    overrides: &[&str],
+    every: u64,
+) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example(example_name);
+    let schedule = format!("output.checkpoint={{\"steps\":{every}}}");
+    let mut args = vec!["run", scene.to_str().unwrap(), "--out", "a", "-q", "--set"];
+    args.push(&schedule);
+    for o in overrides {
+        args.extend(["--set", o]);
+    }
+    let out = mpm(&args, dir.path());
+    assert!(out.status.success(), "{}", text(&out));
+    let name = example_name.trim_end_matches(".json");
+    let a = dir.path().join("a").join(format!("{name}.zarr"));
+    let pointer = checkpoint_of(&a).expect("a checkpoint was written");
+    assert!(pointer["step"].as_u64().unwrap() > 0, "{pointer}");
+    let b = dir.path().join("b.zarr");
+    copy_dir(&a, &b);
+    let out = mpm(&["run", "--resume", "b.zarr", "-q", "--json"], dir.path());
+    assert!(out.status.success(), "{}", text(&out));
+    let metrics: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(metrics["resumed_from_step"], pointer["step"]);
+    assert_same_results(&a, &b);
+    (dir, a)
+}
+
+#[test]
+fn explicit_run_with_a_reference_resumes_bit_for_bit() {
+    // The vibrating bar: the reference's error accumulates over frames, so the resumed run
+    // must carry it over; checkpoints must not change the run either.
+    let (dir, with_checkpoints) = resumed_equals_uninterrupted("vibrating-bar.json", &[], 100);
+    let plain = mpm(
+        &[
+            "run",
+            example("vibrating-bar.json").to_str().unwrap(),
+            "--out",
+            "plain",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(plain.status.success(), "{}", text(&plain));
+    assert_same_results(
+        &dir.path().join("plain/vibrating-bar.zarr"),
+        &with_checkpoints,
+    );
+}
+
+#[test]
+fn johnson_cook_state_and_damage_resume_bit_for_bit() {
+    resumed_equals_uninterrupted("taylor-bar.json", &["solver.end_time=1e-5"], 40);
+}
+
+#[test]
+fn heat_and_phase_change_resume_bit_for_bit() {
+    resumed_equals_uninterrupted("stefan-two-phase.json", &[], 50);
+}
+
+#[test]
+fn thermal_expansion_with_cohesive_interfaces_resumes_bit_for_bit() {
+    // Free strain (the stress update's last applied free strain is solver state), contact
+    // fields and bonded interfaces, particles reordered every few steps.
+    resumed_equals_uninterrupted(
+        "underfill-delamination.json",
+        &["solver.end_time=5e-6", "output.frames=5"],
+        250,
+    );
+}
+
+#[test]
+fn quasi_static_cure_resumes_bit_for_bit() {
+    resumed_equals_uninterrupted("underfill-cure.json", &["solver.end_time=300"], 4);
+}
+
+#[test]
+fn friction_contact_resumes_bit_for_bit() {
+    resumed_equals_uninterrupted("two-disks-contact.json", &[], 100);
+}
+
+#[test]
+fn implicit_static_steps_resume_bit_for_bit() {
+    resumed_equals_uninterrupted("cantilever-static.json", &[], 7);
+}
+
+#[test]
+fn incompressible_liquid_resumes_bit_for_bit() {
+    resumed_equals_uninterrupted("dam-break.json", &[], 40);
+}
+
+#[test]
+fn a_killed_run_resumes_bit_for_bit() {
+    // The double cantilever beam: contact fields and cohesive interface nodes whose damage
+    // grows. The run is killed as soon as its first checkpoint is on disk, while it goes on
+    // writing frames; the resume drops the frames after the checkpoint and writes them again.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example("dcb.json");
+    let args = |out: &str| {
+        vec![
+            "run".to_string(),
+            scene.to_str().unwrap().to_string(),
+            "--out".into(),
+            out.into(),
+            "-q".into(),
+            "--set".into(),
+            "solver.end_time=0.012".into(),
+            "--set".into(),
+            "output.checkpoint={\"steps\":300}".into(),
+        ]
+    };
+    let whole = mpm(
+        &args("whole").iter().map(String::as_str).collect::<Vec<_>>(),
+        dir.path(),
+    );
+    assert!(whole.status.success(), "{}", text(&whole));
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_mpm"))
+        .args(args("killed"))
+        .current_dir(dir.path())
+        .spawn()
+        .unwrap();
+    let store = dir.path().join("killed/dcb.zarr");
+    let start = Instant::now();
+    let mut killed_running = false;
+    loop {
+        if checkpoint_of(&store).is_some() {
+            killed_running = child.try_wait().unwrap().is_none();
+            child.kill().unwrap();
+            break;
+        }
+        if child.try_wait().unwrap().is_some() || start.elapsed() > Duration::from_secs(120) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let status = child.wait().unwrap();
+    assert!(
+        killed_running,
+        "the run ended before it could be killed ({status}); lengthen it"
+    );
+    let written = ResultStore::open(&store).unwrap().frame_count().unwrap();
+    let at = checkpoint_of(&store).unwrap()["frames"].as_u64().unwrap();
+    assert!(written >= at, "{written} frames, checkpoint after {at}");
+    let out = mpm(&["run", "--resume", "killed/dcb.zarr", "-q"], dir.path());
+    assert!(out.status.success(), "{}", text(&out));
+    assert_same_results(&dir.path().join("whole/dcb.zarr"), &store);
+}
+
+#[test]
+fn resume_refuses_what_it_cannot_continue() {
+    let dir = tempfile::tempdir().unwrap();
+    // A store without checkpoints.
+    let out = mpm(
+        &[
+            "run",
+            example("heat-slab.json").to_str().unwrap(),
+            "--out",
+            "r",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let out = mpm(&["run", "--resume", "r/heat-slab.zarr"], dir.path());
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("no checkpoint"), "{}", text(&out));
+    // Not a store at all.
+    let out = mpm(&["run", "--resume", "nowhere.zarr"], dir.path());
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    // A scene and --resume together.
+    let out = mpm(
+        &["run", "x.json", "--resume", "r/heat-slab.zarr"],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    // The gap-averaged underfill keeps cell state a checkpoint does not hold: refused with
+    // the path before anything runs.
+    let out = mpm(
+        &[
+            "validate",
+            example("capillary-gap.json").to_str().unwrap(),
+            "--set",
+            "output.checkpoint={\"steps\":10}",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(
+        text(&out).contains("output.checkpoint") && text(&out).contains("underfill"),
+        "{}",
+        text(&out)
+    );
+    let out = mpm(
+        &[
+            "validate",
+            example("heat-slab.json").to_str().unwrap(),
+            "--set",
+            "output.checkpoint={}",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("output.checkpoint"), "{}", text(&out));
+}

@@ -1,0 +1,270 @@
+//! Saving a simulation's whole state into a [`Checkpoint`] and restoring it, so a resumed
+//! run continues bit for bit: particles with every field (in their current, reordered
+//! order), material and physics state, the clock, statistics the next step reads, the
+//! energy ledger, the reference's running error, the physics report, contact and the
+//! mode's own state.
+
+use super::DimensionDispatch;
+use super::simulation::Simulation;
+use crate::checkpoint::{Checkpoint, CheckpointError, Scalars};
+use crate::kernels::Kernel;
+use crate::material::Material;
+use crate::math::{Matrix, Vector};
+
+/// Flattens vectors or matrices (nalgebra's column-major storage) into numbers.
+fn flatten<T: AsRef<[f64]>>(values: &[T]) -> Vec<f64> {
+    values
+        .iter()
+        .flat_map(|v| v.as_ref().iter().copied())
+        .collect()
+}
+
+fn vectors<const D: usize>(numbers: &[f64]) -> Vec<Vector<D>> {
+    numbers
+        .chunks_exact(D)
+        .map(Vector::<D>::from_column_slice)
+        .collect()
+}
+
+fn matrices<const D: usize>(numbers: &[f64]) -> Vec<Matrix<D>> {
+    numbers
+        .chunks_exact(D * D)
+        .map(Matrix::<D>::from_column_slice)
+        .collect()
+}
+
+/// Copies the checkpoint's array `name` into `target`, which keeps its length (0 when the
+/// run does not allocate the field).
+fn restore_vec<T>(
+    c: &Checkpoint,
+    name: &str,
+    target: &mut Vec<T>,
+    per_item: usize,
+    build: impl Fn(&[f64]) -> Vec<T>,
+) -> Result<(), CheckpointError> {
+    let numbers = c.get(name, target.len() * per_item)?;
+    *target = build(numbers);
+    Ok(())
+}
+
+impl<const D: usize, K: Kernel> Simulation<D, K>
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    /// Writes the simulation's state into `c`. The mode drops the caches it would rebuild
+    /// after a resume, so the run goes on as a resumed one does.
+    pub(super) fn save_state(&mut self, c: &mut Checkpoint) {
+        let p = &self.particles;
+        c.put("particles.position", flatten(&p.position));
+        c.put("particles.velocity", flatten(&p.velocity));
+        c.put("particles.mass", p.mass.clone());
+        c.put("particles.volume0", p.volume0.clone());
+        c.put(
+            "particles.deformation_gradient",
+            flatten(&p.deformation_gradient),
+        );
+        c.put("particles.stress", flatten(&p.stress));
+        c.put("particles.affine", flatten(&p.affine));
+        c.put("particles.velocity_gradient", flatten(&p.velocity_gradient));
+        c.put("particles.half_size", p.half_size.clone());
+        c.put("particles.initial_position", flatten(&p.initial_position));
+        c.put("particles.id", p.id.iter().map(|&i| i as f64).collect());
+        c.put(
+            "particles.contact_field",
+            p.contact_field.iter().map(|&f| f as f64).collect(),
+        );
+        for (g, group) in p.groups.iter().enumerate() {
+            for (j, values) in group.state.iter().enumerate() {
+                c.put(format!("group.{g}.state.{j}"), values.clone());
+            }
+        }
+        for name in p.shared.names() {
+            let values = p.shared.get(name).unwrap_or(&[]).to_vec();
+            c.put(format!("shared.{name}"), values);
+        }
+        let mut s = Scalars::new();
+        let relax = self.relax_time.unwrap_or(f64::NAN);
+        s.push(&[
+            self.time,
+            self.steps as f64,
+            self.sort_counter as f64,
+            self.energy0,
+            self.physics_dt,
+            relax,
+        ]);
+        let l = &self.ledger;
+        s.push(&[
+            l.boundaries,
+            l.free_strain,
+            l.damping,
+            l.plastic,
+            l.friction,
+            l.cohesive,
+        ]);
+        let k = &self.kinematics;
+        s.push(&[k.kinetic_energy]);
+        s.push(k.momentum.as_slice());
+        s.push(&[
+            k.gravity_energy,
+            k.max_speed,
+            k.min_det_f,
+            k.min_det_particle as f64,
+        ]);
+        let st = &self.stresses;
+        s.push(&[
+            st.batch.strain_energy,
+            st.batch.max_wave_speed,
+            st.free_strain_work,
+            st.plastic_work,
+        ]);
+        c.put("simulation.scalars", s.into_vec());
+        c.set_state("step", self.steps.into());
+        c.set_state("time", self.time.into());
+        if let Some(r) = &self.reference {
+            c.set_state("reference", r.save_state());
+        }
+        c.set_state(
+            "report",
+            serde_json::json!({
+                "maxima": self.report.maxima,
+                "tables": self.report.tables,
+            }),
+        );
+        self.stress_scratch.save(c);
+        if let Some(contact) = &self.contact {
+            contact.save(c);
+        }
+        if let Some(mode) = &mut self.mode {
+            mode.save(c);
+        }
+    }
+
+    /// Restores what [`Simulation::save_state`] wrote into a simulation freshly built from
+    /// the same scene (not initialised).
+    pub(super) fn restore_state(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
+        let n = self.particles.len();
+        let p = &mut self.particles;
+        let by_vector = |x: &[f64]| vectors::<D>(x);
+        let by_matrix = |x: &[f64]| matrices::<D>(x);
+        let by_number = |x: &[f64]| x.to_vec();
+        restore_vec(c, "particles.position", &mut p.position, D, by_vector)?;
+        restore_vec(c, "particles.velocity", &mut p.velocity, D, by_vector)?;
+        restore_vec(c, "particles.mass", &mut p.mass, 1, by_number)?;
+        restore_vec(c, "particles.volume0", &mut p.volume0, 1, by_number)?;
+        let dd = D * D;
+        restore_vec(
+            c,
+            "particles.deformation_gradient",
+            &mut p.deformation_gradient,
+            dd,
+            by_matrix,
+        )?;
+        restore_vec(c, "particles.stress", &mut p.stress, dd, by_matrix)?;
+        restore_vec(c, "particles.affine", &mut p.affine, dd, by_matrix)?;
+        restore_vec(
+            c,
+            "particles.velocity_gradient",
+            &mut p.velocity_gradient,
+            dd,
+            by_matrix,
+        )?;
+        restore_vec(c, "particles.half_size", &mut p.half_size, 1, by_number)?;
+        restore_vec(
+            c,
+            "particles.initial_position",
+            &mut p.initial_position,
+            D,
+            by_vector,
+        )?;
+        let ids = c.get("particles.id", n)?;
+        let mut seen = vec![false; n];
+        for (id, &value) in p.id.iter_mut().zip(ids) {
+            let k = value as usize;
+            if value < 0.0 || value.fract() != 0.0 || k >= n || seen[k] {
+                return Err(CheckpointError::Invalid(
+                    "the particle ids are not a permutation of the particles".into(),
+                ));
+            }
+            seen[k] = true;
+            *id = k as u32;
+        }
+        let fields = c.get("particles.contact_field", p.contact_field.len())?;
+        for (f, &value) in p.contact_field.iter_mut().zip(fields) {
+            *f = value as u8;
+        }
+        for (g, group) in p.groups.iter_mut().enumerate() {
+            let len = group.range.len();
+            for (j, values) in group.state.iter_mut().enumerate() {
+                let name = format!("group.{g}.state.{j}");
+                let components = values.len() / len.max(1);
+                values.copy_from_slice(c.get(&name, len * components)?);
+            }
+        }
+        let names: Vec<&'static str> = p.shared.names().to_vec();
+        for name in names {
+            if let Some(values) = p.shared.get_mut(name) {
+                let len = values.len();
+                values.copy_from_slice(c.get(&format!("shared.{name}"), len)?);
+            }
+        }
+        let all = c
+            .arrays
+            .get("simulation.scalars")
+            .ok_or_else(|| CheckpointError::Missing("simulation.scalars".into()))?;
+        let mut s = Scalars::reading(all);
+        let [time, steps, sort_counter, energy0, physics_dt, relax] = s.take_n()?;
+        self.time = time;
+        self.steps = steps as u64;
+        self.sort_counter = sort_counter as u64;
+        self.energy0 = energy0;
+        self.physics_dt = physics_dt;
+        self.relax_time = (!relax.is_nan()).then_some(relax);
+        let [
+            boundaries,
+            free_strain,
+            damping,
+            plastic,
+            friction,
+            cohesive,
+        ] = s.take_n()?;
+        self.ledger = crate::energy_ledger::EnergyLedger {
+            boundaries,
+            free_strain,
+            damping,
+            plastic,
+            friction,
+            cohesive,
+        };
+        let k = &mut self.kinematics;
+        k.kinetic_energy = s.take()?;
+        k.momentum = Vector::<D>::from_column_slice(&s.take_n::<D>()?);
+        let [gravity, max_speed, min_det_f, min_det_particle] = s.take_n()?;
+        k.gravity_energy = gravity;
+        k.max_speed = max_speed;
+        k.min_det_f = min_det_f;
+        k.min_det_particle = min_det_particle as usize;
+        let st = &mut self.stresses;
+        let [strain, wave, free_work, plastic_work] = s.take_n()?;
+        st.batch.strain_energy = strain;
+        st.batch.max_wave_speed = wave;
+        st.free_strain_work = free_work;
+        st.plastic_work = plastic_work;
+        if let Some(r) = &mut self.reference {
+            r.restore_state(c.state("reference").clone())
+                .map_err(|e| CheckpointError::Invalid(format!("reference: {e}")))?;
+        }
+        let report = c.state("report");
+        self.report.maxima = serde_json::from_value(report["maxima"].clone())
+            .map_err(|e| CheckpointError::Invalid(format!("report.maxima: {e}")))?;
+        self.report.tables = serde_json::from_value(report["tables"].clone())
+            .map_err(|e| CheckpointError::Invalid(format!("report.tables: {e}")))?;
+        self.stress_scratch.restore(c)?;
+        if let Some(contact) = &mut self.contact {
+            contact.restore(c)?;
+        }
+        if let Some(mode) = &mut self.mode {
+            mode.restore(c)?;
+        }
+        Ok(())
+    }
+}
