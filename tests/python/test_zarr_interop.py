@@ -98,3 +98,26 @@ def test_a_store_with_a_checkpoint_opens_in_zarr_and_xarray(tmp_path):
     assert checkpoint.attrs["state"]["step"] == 400
     tree = xr.open_datatree(str(store), engine="zarr", consolidated=False)
     assert tree["checkpoints"]["400"]["particles.mass"].shape == (320,)
+
+
+def test_a_staged_store_opens_stage_by_stage(tmp_path):
+    scene = json.loads((ROOT / "examples" / "vibrating-bar.json").read_text())
+    scene["name"] = "bar-staged"
+    scene["output"]["frames"] = 4
+    scene["stages"] = [
+        {"name": "first", "changes": {"solver": {"end_time": 0.2}}},
+        {"name": "second", "changes": {"solver": {"end_time": 0.4}}},
+    ]
+    path = tmp_path / "staged.json"
+    path.write_text(json.dumps(scene))
+    subprocess.run([MPM, "run", str(path), "--out", str(tmp_path), "-q"], check=True)
+    store = tmp_path / "bar-staged.zarr"
+    g = zarr.open_group(str(store), mode="r")
+    assert [s["name"] for s in g.attrs["metrics"]["stages"]] == ["first", "second"]
+    second = g["stages/1-second"]
+    assert second["time"][0] == 0.2 and second["time"][-1] == 0.4
+    assert second.attrs["metrics"]["outcome"] == "finished"
+    # The first frame of a stage is the last of the stage before.
+    assert np.array_equal(second["particles/x"][0], g["stages/0-first/particles/x"][-1])
+    tree = xr.open_datatree(str(store), engine="zarr", consolidated=False)
+    assert tree["stages"]["0-first"]["particles"]["x"].shape == (5, 320, 2)

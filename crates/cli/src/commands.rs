@@ -69,6 +69,9 @@ pub enum Command {
         /// Folder for the VTK files.
         #[arg(long)]
         vtk: PathBuf,
+        /// Stage of a staged run's store (its name; default: the last stage).
+        #[arg(long)]
+        stage: Option<String>,
     },
     /// Draw one frame of a 2D result store as a PNG picture (for documentation).
     ///
@@ -98,6 +101,9 @@ pub enum Command {
         /// Mark the voids of this table of the store's metrics (`metrics.tables.TABLE`).
         #[arg(long, value_name = "TABLE")]
         voids: Option<String>,
+        /// Stage of a staged run's store (its name; default: the last stage).
+        #[arg(long)]
+        stage: Option<String>,
     },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
@@ -322,8 +328,8 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         }
         Command::Rom { command } => crate::rom::run(command, &registry),
         Command::RunJob(args) => Ok(crate::job::run(&args, &registry)),
-        Command::Export { store, vtk } => {
-            let pvd = mpm_io::export_vtk(&store, &vtk)?;
+        Command::Export { store, vtk, stage } => {
+            let pvd = mpm_io::export_vtk(&store, &vtk, stage.as_deref())?;
             outln!("wrote {}", pvd.display())?;
             Ok(ExitStatus::Success)
         }
@@ -335,6 +341,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             out,
             title,
             voids,
+            stage,
         } => {
             let r = crate::render::render(&crate::render::RenderArgs {
                 store,
@@ -344,6 +351,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 out: out.clone(),
                 title,
                 voids,
+                stage,
             })?;
             let voids = r
                 .voids
@@ -584,6 +592,21 @@ fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) -> anyhow::Resul
         )?;
     }
     outln!("particles      {}", m.particles)?;
+    for stage in &m.stages {
+        let error = stage
+            .error
+            .map(|e| format!(", error {e:.4e}"))
+            .unwrap_or_default();
+        outln!(
+            "stage          {}: {:?}, t = {:.6e} to {:.6e} s, {} steps, {:.3} s{error}",
+            stage.name,
+            stage.outcome.unwrap_or(Outcome::Stopped),
+            stage.start_time,
+            stage.end_time,
+            stage.steps,
+            stage.wall_seconds
+        )?;
+    }
     outln!(
         "steps          {} to t = {:.6e} s",
         m.steps,

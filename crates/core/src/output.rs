@@ -52,6 +52,37 @@ pub struct RunInfo<'a> {
     pub scene: &'a serde_json::Value,
 }
 
+/// A stage of a staged run, given to the writer before the stage begins.
+pub struct StageInfo<'a> {
+    /// Position of the stage, from 0.
+    pub index: usize,
+    /// Its name.
+    pub name: &'a str,
+    /// The whole staged scene (defaults filled in).
+    pub scene: &'a serde_json::Value,
+}
+
+/// The figures of one stage of a staged run, in the run's metrics.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct StageSummary {
+    /// The stage's name.
+    pub name: String,
+    /// How it ended.
+    pub outcome: Option<Outcome>,
+    /// Simulated time it started and ended at, s.
+    pub start_time: f64,
+    /// See `start_time`.
+    pub end_time: f64,
+    /// Time steps it took.
+    pub steps: u64,
+    /// Its wall-clock seconds.
+    pub wall_seconds: f64,
+    /// Its error against its reference, when it has one.
+    pub error: Option<f64>,
+    /// Its energy error (see `Metrics::energy_drift`).
+    pub energy_drift: f64,
+}
+
 /// One output frame. `values[i]` holds field `i` for every particle in output order,
 /// flattened (particle-major).
 pub struct Frame<'a> {
@@ -78,6 +109,16 @@ pub trait OutputSink {
     fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError>;
     /// Called once at the end, also when the run stopped early.
     fn finish(&mut self, metrics: &Metrics) -> Result<(), OutputError>;
+    /// In a staged run, called before each stage's `begin`: the stage's frames, tables
+    /// and metrics go to a place of its own. A sink that does not separate stages ignores it.
+    fn begin_stage(&mut self, _stage: &StageInfo<'_>) -> Result<(), OutputError> {
+        Ok(())
+    }
+    /// In a staged run, called once after the last stage's `finish` with the whole run's
+    /// metrics (its `stages` list every stage).
+    fn finish_stages(&mut self, _metrics: &Metrics) -> Result<(), OutputError> {
+        Ok(())
+    }
     /// Keeps a checkpoint of the run (replacing the previous one). A sink that keeps no
     /// checkpoints ignores it.
     fn write_checkpoint(
@@ -216,6 +257,10 @@ pub struct Metrics {
     pub max_momentum: f64,
     /// Output frames written.
     pub frames: usize,
+    /// The stages of a staged run, in order (the other figures are the last stage's, with
+    /// wall time and steps over the whole run).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stages: Vec<StageSummary>,
     /// The step of the checkpoint this run was resumed from, when it was (`mpm run
     /// --resume`, or a job whose worker died); everything else is as if it never stopped.
     #[serde(skip_serializing_if = "Option::is_none")]

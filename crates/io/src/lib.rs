@@ -9,6 +9,8 @@
 //! - `diagnostics/<name>`: float64 `[frame]` (energies, max speed, min det F, dt, step)
 //! - `tables/<name>`: float64 `[row, column]`, one chunk, attribute `columns` (tables the
 //!   physics operators kept, such as voids; the group exists only when there are tables)
+//! - `stages/<index>-<name>/...`: in a staged run, each stage's `time`, `particles`,
+//!   `diagnostics`, `tables` (instead of the root's), its scene and metrics as attributes
 //! - `checkpoints/<step>/<array>`: float64 `[index]`, the latest checkpoint (only with
 //!   `output.checkpoint`), its structured state in the group attribute `state`
 //! - root attributes: `scene`, `mpm_version`, `dimension`, `particles`, `metrics`,

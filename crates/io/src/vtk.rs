@@ -12,10 +12,15 @@ fn file_err(path: &Path, source: std::io::Error) -> IoError {
     }
 }
 
-/// Writes `DIR/<name>.pvd` and `DIR/<name>_<frame>.vtu` with every stored particle field.
-/// Returns the path of the `.pvd` file.
-pub fn export_vtk(store_path: &Path, dir: &Path) -> Result<std::path::PathBuf, IoError> {
-    let store = ResultStore::open(store_path)?;
+/// Writes `DIR/<name>.pvd` and `DIR/<name>_<frame>.vtu` with every stored particle field
+/// (of the stage `stage` of a staged run's store, default the last, named
+/// `<name>-<stage>`). Returns the path of the `.pvd` file.
+pub fn export_vtk(
+    store_path: &Path,
+    dir: &Path,
+    stage: Option<&str>,
+) -> Result<std::path::PathBuf, IoError> {
+    let store = ResultStore::open_stage(store_path, stage)?;
     let dim = store.dimension();
     let name = store
         .attributes()
@@ -24,6 +29,10 @@ pub fn export_vtk(store_path: &Path, dir: &Path) -> Result<std::path::PathBuf, I
         .and_then(|n| n.as_str())
         .unwrap_or("run")
         .to_string();
+    let name = match store.stage_name() {
+        Some(stage) => format!("{name}-{stage}"),
+        None => name,
+    };
     let times = store.times()?;
     let fields = store.fields()?;
     if !fields.iter().any(|f| f == "x") {

@@ -16,6 +16,8 @@ pub struct ResultStore {
     path: PathBuf,
     store: Arc<FilesystemStore>,
     attributes: serde_json::Map<String, serde_json::Value>,
+    /// Group of the stage read (`/stages/<i>-<name>`), or empty for the root.
+    prefix: String,
 }
 
 fn zerr(path: &Path, e: impl std::fmt::Display) -> IoError {
@@ -48,7 +50,64 @@ impl ResultStore {
             path,
             store,
             attributes,
+            prefix: String::new(),
         })
+    }
+
+    /// The stages of a staged run's store (`<index>-<name>`, in order); empty otherwise.
+    pub fn stages(&self) -> Vec<String> {
+        let mut stages: Vec<(usize, String)> = std::fs::read_dir(self.path.join("stages"))
+            .into_iter()
+            .flatten()
+            .filter_map(Result::ok)
+            .filter(|e| e.path().join("zarr.json").is_file())
+            .filter_map(|e| e.file_name().into_string().ok())
+            .filter_map(|name| {
+                let index = name.split('-').next()?.parse().ok()?;
+                Some((index, name))
+            })
+            .collect();
+        stages.sort();
+        stages.into_iter().map(|(_, name)| name).collect()
+    }
+
+    /// Reads the stage `name` (its name, or `<index>-<name>`) of a staged run's store; the
+    /// root's frames otherwise are not there.
+    pub fn stage(mut self, name: &str) -> Result<Self, IoError> {
+        let stages = self.stages();
+        let found = stages
+            .iter()
+            .find(|s| s.as_str() == name || s.split_once('-').map(|(_, n)| n) == Some(name))
+            .ok_or_else(|| IoError::Layout {
+                path: self.path.display().to_string(),
+                message: if stages.is_empty() {
+                    format!("no stage `{name}`: the store is not a staged run's")
+                } else {
+                    format!("no stage `{name}` (stages: {})", stages.join(", "))
+                },
+            })?;
+        self.prefix = format!("/stages/{found}");
+        Ok(self)
+    }
+
+    /// Opens a store and, for a staged run's store, the stage `name` (default: the last).
+    pub fn open_stage(path: impl Into<PathBuf>, name: Option<&str>) -> Result<Self, IoError> {
+        let store = Self::open(path)?;
+        match (name, store.stages().last().cloned()) {
+            (Some(name), _) => store.stage(name),
+            (None, Some(last)) => store.stage(&last),
+            (None, None) => Ok(store),
+        }
+    }
+
+    /// The stage read (`<index>-<name>`), if any.
+    pub fn stage_name(&self) -> Option<&str> {
+        self.prefix.strip_prefix("/stages/")
+    }
+
+    /// The folder of the stage read (or of the store).
+    fn dir(&self) -> PathBuf {
+        self.path.join(self.prefix.trim_start_matches('/'))
     }
 
     /// Root attributes (`scene`, `metrics`, ...).
@@ -66,7 +125,8 @@ impl ResultStore {
 
     /// Output times.
     pub fn times(&self) -> Result<Vec<f64>, IoError> {
-        let array = Array::open(self.store.clone(), "/time").map_err(|e| zerr(&self.path, e))?;
+        let array = Array::open(self.store.clone(), &format!("{}/time", self.prefix))
+            .map_err(|e| zerr(&self.path, e))?;
         array
             .retrieve_array_subset::<Vec<f64>>(&array.subset_all())
             .map_err(|e| zerr(&self.path, e))
@@ -74,8 +134,11 @@ impl ResultStore {
 
     /// A per-frame diagnostic (`kinetic_energy`, `strain_energy`, `total_energy`, ...).
     pub fn diagnostic(&self, name: &str) -> Result<Vec<f64>, IoError> {
-        let array = Array::open(self.store.clone(), &format!("/diagnostics/{name}"))
-            .map_err(|e| zerr(&self.path, e))?;
+        let array = Array::open(
+            self.store.clone(),
+            &format!("{}/diagnostics/{name}", self.prefix),
+        )
+        .map_err(|e| zerr(&self.path, e))?;
         array
             .retrieve_array_subset::<Vec<f64>>(&array.subset_all())
             .map_err(|e| zerr(&self.path, e))
@@ -83,7 +146,7 @@ impl ResultStore {
 
     /// Names of the stored particle fields.
     pub fn fields(&self) -> Result<Vec<String>, IoError> {
-        let dir = self.path.join("particles");
+        let dir = self.dir().join("particles");
         let entries = std::fs::read_dir(&dir).map_err(|source| IoError::File {
             path: dir.display().to_string(),
             source,
@@ -99,8 +162,11 @@ impl ResultStore {
 
     /// Particles of a field as its metadata states them (read before any frame is).
     pub fn particle_count(&self, field: &str) -> Result<u64, IoError> {
-        let array = Array::open(self.store.clone(), &format!("/particles/{field}"))
-            .map_err(|e| zerr(&self.path, e))?;
+        let array = Array::open(
+            self.store.clone(),
+            &format!("{}/particles/{field}", self.prefix),
+        )
+        .map_err(|e| zerr(&self.path, e))?;
         let shape = array.shape();
         if shape.len() < 2 || shape[2..].iter().any(|&c| c > 3) {
             return Err(IoError::Layout {
@@ -113,8 +179,11 @@ impl ResultStore {
 
     /// One frame of a field: its per-particle shape and values (particle-major).
     pub fn frame(&self, field: &str, frame: u64) -> Result<(Vec<u64>, Vec<f64>), IoError> {
-        let array = Array::open(self.store.clone(), &format!("/particles/{field}"))
-            .map_err(|e| zerr(&self.path, e))?;
+        let array = Array::open(
+            self.store.clone(),
+            &format!("{}/particles/{field}", self.prefix),
+        )
+        .map_err(|e| zerr(&self.path, e))?;
         let shape = array.shape().to_vec();
         if frame >= shape[0] {
             return Err(IoError::Layout {
@@ -137,7 +206,7 @@ impl ResultStore {
             return Ok(None);
         }
         if !self
-            .path
+            .dir()
             .join("tables")
             .join(name)
             .join("zarr.json")
@@ -149,8 +218,11 @@ impl ResultStore {
             path: self.path.display().to_string(),
             message,
         };
-        let array = Array::open(self.store.clone(), &format!("/tables/{name}"))
-            .map_err(|e| zerr(&self.path, e))?;
+        let array = Array::open(
+            self.store.clone(),
+            &format!("{}/tables/{name}", self.prefix),
+        )
+        .map_err(|e| zerr(&self.path, e))?;
         let columns: Vec<String> = array
             .attributes()
             .get("columns")

@@ -2,7 +2,9 @@
 //! frame written before it.
 
 use crate::IoError;
-use mpm_core::output::{FRAME_DIAGNOSTICS, Frame, Metrics, OutputError, OutputSink, RunInfo};
+use mpm_core::output::{
+    FRAME_DIAGNOSTICS, Frame, Metrics, OutputError, OutputSink, RunInfo, StageInfo,
+};
 use mpm_core::physics::Table;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -26,6 +28,9 @@ pub struct ZarrSink {
     frames: u64,
     /// Continue an existing store after this many frames instead of creating one.
     resume_after: Option<u64>,
+    /// In a staged run: the group of the stage being written (`/stages/<i>-<name>`), and
+    /// the whole staged scene for the root attributes.
+    stage: Option<(String, serde_json::Value)>,
 }
 
 fn zerr(path: &Path, e: impl std::fmt::Display) -> IoError {
@@ -51,6 +56,7 @@ impl ZarrSink {
             fields: Vec::new(),
             frames: 0,
             resume_after: None,
+            stage: None,
         }
     }
 
@@ -62,6 +68,11 @@ impl ZarrSink {
             resume_after: Some(frames as u64),
             ..Self::new(path)
         }
+    }
+
+    /// Where the per-frame arrays go: the root, or the stage's group.
+    fn prefix(&self) -> &str {
+        self.stage.as_ref().map_or("", |(group, _)| group.as_str())
     }
 
     /// Opens the existing store and cuts its per-frame arrays to `frames` frames.
@@ -116,6 +127,20 @@ impl ZarrSink {
     fn create(&mut self, info: &RunInfo<'_>) -> Result<(), IoError> {
         zarrs::config::global_config_mut().set_include_zarrs_metadata(false);
         let path = self.path.clone();
+        let prefix = self.prefix().to_string();
+        if let (Some(store), Some((group, _))) = (self.store.clone(), self.stage.as_ref()) {
+            // A later stage: its group in the store the first stage made.
+            let mut attrs = serde_json::Map::new();
+            attrs.insert("scene".into(), info.scene.clone());
+            attrs.insert("metrics".into(), serde_json::Value::Null);
+            GroupBuilder::new()
+                .attributes(attrs)
+                .build(store.clone(), group)
+                .map_err(|e| zerr(&path, e))?
+                .store_metadata()
+                .map_err(|e| zerr(&path, e))?;
+            return self.create_arrays(info, &store, &prefix);
+        }
         if path.exists() {
             std::fs::remove_dir_all(&path).map_err(|source| IoError::File {
                 path: path.display().to_string(),
@@ -128,7 +153,8 @@ impl ZarrSink {
         })?;
         let store = Arc::new(FilesystemStore::new(&path).map_err(|e| zerr(&path, e))?);
         let mut attrs = serde_json::Map::new();
-        attrs.insert("scene".into(), info.scene.clone());
+        let scene = self.stage.as_ref().map_or(info.scene, |(_, whole)| whole);
+        attrs.insert("scene".into(), scene.clone());
         attrs.insert("mpm_version".into(), mpm_core::VERSION.into());
         attrs.insert("dimension".into(), info.dimension.into());
         attrs.insert("particles".into(), info.particles.into());
@@ -138,9 +164,42 @@ impl ZarrSink {
             .build(store.clone(), "/")
             .map_err(|e| zerr(&path, e))?;
         root.store_metadata().map_err(|e| zerr(&path, e))?;
-        for group in ["/particles", "/diagnostics"] {
+        self.root = Some(root);
+        self.store = Some(store.clone());
+        if let Some((group, _)) = &self.stage {
+            for g in ["/stages".to_string(), group.clone()] {
+                let mut attrs = serde_json::Map::new();
+                if &g == group {
+                    attrs.insert("scene".into(), info.scene.clone());
+                    attrs.insert("metrics".into(), serde_json::Value::Null);
+                }
+                GroupBuilder::new()
+                    .attributes(attrs)
+                    .build(store.clone(), &g)
+                    .map_err(|e| zerr(&path, e))?
+                    .store_metadata()
+                    .map_err(|e| zerr(&path, e))?;
+            }
+        }
+        self.create_arrays(info, &store, &prefix)
+    }
+
+    /// The per-frame arrays of a run (or stage) under `prefix`.
+    fn create_arrays(
+        &mut self,
+        info: &RunInfo<'_>,
+        store: &Arc<FilesystemStore>,
+        prefix: &str,
+    ) -> Result<(), IoError> {
+        let path = self.path.clone();
+        self.frames = 0;
+        self.fields.clear();
+        for group in [
+            format!("{prefix}/particles"),
+            format!("{prefix}/diagnostics"),
+        ] {
             GroupBuilder::new()
-                .build(store.clone(), group)
+                .build(store.clone(), &group)
                 .map_err(|e| zerr(&path, e))?
                 .store_metadata()
                 .map_err(|e| zerr(&path, e))?;
@@ -159,10 +218,10 @@ impl ZarrSink {
             array.store_metadata().map_err(|e| zerr(&path, e))?;
             Ok(array)
         };
-        self.time = Some(scalar("/time")?);
+        self.time = Some(scalar(&format!("{prefix}/time"))?);
         self.diagnostics = FRAME_DIAGNOSTICS
             .iter()
-            .map(|name| scalar(&format!("/diagnostics/{name}")))
+            .map(|name| scalar(&format!("{prefix}/diagnostics/{name}")))
             .collect::<Result<_, _>>()?;
         let n = info.particles as u64;
         for field in info.fields {
@@ -178,13 +237,11 @@ impl ZarrSink {
             let array = ArrayBuilder::new(shape.clone(), chunk, data_type::float64(), f64::NAN)
                 .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
                 .dimension_names(Some(dims))
-                .build(store.clone(), &format!("/particles/{}", field.name))
+                .build(store.clone(), &format!("{prefix}/particles/{}", field.name))
                 .map_err(|e| zerr(&path, e))?;
             array.store_metadata().map_err(|e| zerr(&path, e))?;
             self.fields.push((array, shape));
         }
-        self.root = Some(root);
-        self.store = Some(store);
         Ok(())
     }
 
@@ -244,14 +301,37 @@ impl OutputSink for ZarrSink {
 
     fn finish(&mut self, metrics: &Metrics) -> Result<(), OutputError> {
         let path = self.path.clone();
+        let value = serde_json::to_value(metrics).map_err(|e| OutputError(e.to_string()))?;
+        if let (Some(store), Some((group, _))) = (self.store.as_ref(), self.stage.as_ref()) {
+            let mut g = Group::open(store.clone(), group).map_err(|e| out(zerr(&path, e)))?;
+            g.attributes_mut().insert("metrics".into(), value.clone());
+            g.store_metadata().map_err(|e| out(zerr(&path, e)))?;
+        }
+        let Some(root) = self.root.as_mut() else {
+            return Ok(());
+        };
+        root.attributes_mut().insert("metrics".into(), value);
+        root.store_metadata().map_err(|e| out(zerr(&path, e)))?;
+        // After the metrics, so a table that cannot be written loses nothing else.
+        self.write_tables(&metrics.tables).map_err(out)
+    }
+
+    fn begin_stage(&mut self, stage: &StageInfo<'_>) -> Result<(), OutputError> {
+        self.stage = Some((
+            format!("/stages/{}-{}", stage.index, stage.name),
+            stage.scene.clone(),
+        ));
+        Ok(())
+    }
+
+    fn finish_stages(&mut self, metrics: &Metrics) -> Result<(), OutputError> {
+        let path = self.path.clone();
         let Some(root) = self.root.as_mut() else {
             return Ok(());
         };
         let value = serde_json::to_value(metrics).map_err(|e| OutputError(e.to_string()))?;
         root.attributes_mut().insert("metrics".into(), value);
-        root.store_metadata().map_err(|e| out(zerr(&path, e)))?;
-        // After the metrics, so a table that cannot be written loses nothing else.
-        self.write_tables(&metrics.tables).map_err(out)
+        root.store_metadata().map_err(|e| out(zerr(&path, e)))
     }
 }
 
@@ -286,8 +366,9 @@ impl ZarrSink {
                 )));
             }
         }
+        let prefix = self.prefix();
         GroupBuilder::new()
-            .build(store.clone(), "/tables")
+            .build(store.clone(), &format!("{prefix}/tables"))
             .map_err(|e| zerr(path, e))?
             .store_metadata()
             .map_err(|e| zerr(path, e))?;
@@ -301,7 +382,7 @@ impl ZarrSink {
                 .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
                 .dimension_names(Some(["row", "column"]))
                 .attributes(attrs)
-                .build(store.clone(), &format!("/tables/{name}"))
+                .build(store.clone(), &format!("{prefix}/tables/{name}"))
                 .map_err(|e| zerr(path, e))?;
             array.store_metadata().map_err(|e| zerr(path, e))?;
             if shape.iter().all(|&s| s > 0) {

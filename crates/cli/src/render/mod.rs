@@ -37,6 +37,8 @@ pub(crate) struct RenderArgs {
     pub title: Option<String>,
     /// Name of a metrics table of voids to mark.
     pub voids: Option<String>,
+    /// Stage of a staged run's store (default: the last).
+    pub stage: Option<String>,
 }
 
 /// What was drawn.
@@ -69,7 +71,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
             args.out.display()
         ));
     }
-    let store = ResultStore::open(&args.store)
+    let store = ResultStore::open_stage(&args.store, args.stage.as_deref())
         .with_context(|| format!("cannot open result store `{}`", args.store.display()))?;
     let dim = store.dimension();
     if dim != 2 {

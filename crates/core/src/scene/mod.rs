@@ -15,6 +15,7 @@ mod lattice;
 mod obstacle;
 mod output;
 mod solver_settings;
+mod stages;
 mod validate;
 mod validator;
 
@@ -29,6 +30,7 @@ pub use solver_settings::{
     AntiLocking, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName, KrylovMethod,
     Mechanics, Scheme, Solver, TangentMethod, Transfer,
 };
+pub use stages::{FIXED_ACROSS_STAGES, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{
     CORE_FIELDS, INTERFACE_DAMAGE, ValidatedScene, parse_scene, parse_scene_value,
     parse_scene_value_limited,
@@ -80,6 +82,10 @@ pub struct Scene {
     /// register; the run reports its error against it in `metrics.error`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference: Option<serde_json::Value>,
+    /// Stages run one after another on the same particles (fill, cure, cool-down, ...),
+    /// each the scene before it changed by a JSON merge patch; empty: one stage, this scene.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stages: Vec<StageSpec>,
 }
 
 /// One problem in a scene file, at a JSON path such as `materials.steel.poisson_ratio`.

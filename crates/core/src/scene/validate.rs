@@ -29,6 +29,9 @@ pub struct ValidatedScene {
     pub physics: Vec<(String, Arc<dyn Physics>)>,
     /// The reference the run measures its error against, if the scene names one.
     pub reference: Option<Arc<dyn Reference>>,
+    /// The stages of a staged scene, each validated as a scene of its own (empty: the
+    /// scene is one stage).
+    pub stages: Vec<super::ValidatedStage>,
 }
 
 impl ValidatedScene {
@@ -134,6 +137,16 @@ pub fn parse_scene_value_limited(
         return Err(SceneError { issues: v.issues });
     }
     let json = serde_json::to_value(&scene).unwrap_or(value);
+    let stages = if scene.stages.is_empty() {
+        Vec::new()
+    } else {
+        let mut base = json.clone();
+        if let Some(object) = base.as_object_mut() {
+            object.remove("stages");
+        }
+        super::stages::validate_stages(&base, &scene.stages, registry, base_dir, limits)
+            .map_err(|issues| SceneError { issues })?
+    };
     Ok(ValidatedScene {
         scene,
         json,
@@ -141,6 +154,7 @@ pub fn parse_scene_value_limited(
         bodies,
         physics,
         reference,
+        stages,
     })
 }
 

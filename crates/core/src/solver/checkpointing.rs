@@ -41,9 +41,15 @@ fn restore_vec<T>(
     target: &mut Vec<T>,
     per_item: usize,
     build: impl Fn(&[f64]) -> Vec<T>,
+    strict: bool,
 ) -> Result<(), CheckpointError> {
-    let numbers = c.get(name, target.len() * per_item)?;
-    *target = build(numbers);
+    match c.get(name, target.len() * per_item) {
+        Ok(numbers) => *target = build(numbers),
+        // A stage that allocates a field the stage before did not keeps its own start
+        // value (an APIC matrix of zeros, say).
+        Err(_) if !strict => {}
+        Err(e) => return Err(e),
+    }
     Ok(())
 }
 
@@ -120,6 +126,8 @@ where
         c.put("simulation.scalars", s.into_vec());
         c.set_state("step", self.steps.into());
         c.set_state("time", self.time.into());
+        let off = self.settings.mechanics == crate::scene::Mechanics::Off;
+        c.set_state("mechanics_off", off.into());
         if let Some(r) = &self.reference {
             c.set_state("reference", r.save_state());
         }
@@ -142,71 +150,7 @@ where
     /// Restores what [`Simulation::save_state`] wrote into a simulation freshly built from
     /// the same scene (not initialised).
     pub(super) fn restore_state(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
-        let n = self.particles.len();
-        let p = &mut self.particles;
-        let by_vector = |x: &[f64]| vectors::<D>(x);
-        let by_matrix = |x: &[f64]| matrices::<D>(x);
-        let by_number = |x: &[f64]| x.to_vec();
-        restore_vec(c, "particles.position", &mut p.position, D, by_vector)?;
-        restore_vec(c, "particles.velocity", &mut p.velocity, D, by_vector)?;
-        restore_vec(c, "particles.mass", &mut p.mass, 1, by_number)?;
-        restore_vec(c, "particles.volume0", &mut p.volume0, 1, by_number)?;
-        let dd = D * D;
-        restore_vec(
-            c,
-            "particles.deformation_gradient",
-            &mut p.deformation_gradient,
-            dd,
-            by_matrix,
-        )?;
-        restore_vec(c, "particles.stress", &mut p.stress, dd, by_matrix)?;
-        restore_vec(c, "particles.affine", &mut p.affine, dd, by_matrix)?;
-        restore_vec(
-            c,
-            "particles.velocity_gradient",
-            &mut p.velocity_gradient,
-            dd,
-            by_matrix,
-        )?;
-        restore_vec(c, "particles.half_size", &mut p.half_size, 1, by_number)?;
-        restore_vec(
-            c,
-            "particles.initial_position",
-            &mut p.initial_position,
-            D,
-            by_vector,
-        )?;
-        let ids = c.get("particles.id", n)?;
-        let mut seen = vec![false; n];
-        for (id, &value) in p.id.iter_mut().zip(ids) {
-            let k = value as usize;
-            if value < 0.0 || value.fract() != 0.0 || k >= n || seen[k] {
-                return Err(CheckpointError::Invalid(
-                    "the particle ids are not a permutation of the particles".into(),
-                ));
-            }
-            seen[k] = true;
-            *id = k as u32;
-        }
-        let fields = c.get("particles.contact_field", p.contact_field.len())?;
-        for (f, &value) in p.contact_field.iter_mut().zip(fields) {
-            *f = value as u8;
-        }
-        for (g, group) in p.groups.iter_mut().enumerate() {
-            let len = group.range.len();
-            for (j, values) in group.state.iter_mut().enumerate() {
-                let name = format!("group.{g}.state.{j}");
-                let components = values.len() / len.max(1);
-                values.copy_from_slice(c.get(&name, len * components)?);
-            }
-        }
-        let names: Vec<&'static str> = p.shared.names().to_vec();
-        for name in names {
-            if let Some(values) = p.shared.get_mut(name) {
-                let len = values.len();
-                values.copy_from_slice(c.get(&format!("shared.{name}"), len)?);
-            }
-        }
+        self.restore_particles(c, true)?;
         let all = c
             .arrays
             .get("simulation.scalars")
@@ -235,6 +179,102 @@ where
             friction,
             cohesive,
         };
+        self.restore_statistics(&mut s)?;
+        self.stress_scratch.restore(c)?;
+        if let Some(r) = &mut self.reference {
+            r.restore_state(c.state("reference").clone())
+                .map_err(|e| CheckpointError::Invalid(format!("reference: {e}")))?;
+        }
+        let report = c.state("report");
+        self.report.maxima = serde_json::from_value(report["maxima"].clone())
+            .map_err(|e| CheckpointError::Invalid(format!("report.maxima: {e}")))?;
+        self.report.tables = serde_json::from_value(report["tables"].clone())
+            .map_err(|e| CheckpointError::Invalid(format!("report.tables: {e}")))?;
+        if let Some(contact) = &mut self.contact {
+            contact.restore(c)?;
+        }
+        if let Some(mode) = &mut self.mode {
+            mode.restore(c)?;
+        }
+        Ok(())
+    }
+
+    /// Takes over the state the stage before left (`c`, saved at its end) into this
+    /// stage's freshly built simulation: the particles with the fields both stages have,
+    /// the clock, the last step's statistics, the stress update's applied free strain and
+    /// contact; a physics operator whose fields the stage before did not have is
+    /// initialised, and the energy balance, reference, report and mode start afresh.
+    pub(super) fn take_over(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
+        let carried = self.restore_particles(c, false)?;
+        let all = c
+            .arrays
+            .get("simulation.scalars")
+            .ok_or_else(|| CheckpointError::Missing("simulation.scalars".into()))?;
+        let mut s = Scalars::reading(all);
+        let [time, steps, sort_counter, _energy0, _physics_dt, _relax] = s.take_n()?;
+        self.time = time;
+        self.steps = steps as u64;
+        self.sort_counter = sort_counter as u64;
+        let _ledger: [f64; 6] = s.take_n()?;
+        self.restore_statistics(&mut s)?;
+        self.stress_scratch.restore(c)?;
+        if let Some(contact) = &mut self.contact {
+            contact.restore(c)?;
+        }
+        // Physics operators: those whose every field was carried over continue; the others
+        // set their fields' initial values.
+        if !self.physics.is_empty() {
+            if self.needs_interpolation {
+                super::interpolation::build_interpolation::<D, K>(
+                    &self.grid,
+                    &self.particles,
+                    &mut self.interpolation,
+                );
+            }
+            let fresh: Vec<bool> = self
+                .physics
+                .iter()
+                .map(|slot| {
+                    slot.physics
+                        .fields()
+                        .iter()
+                        .any(|f| !carried.contains(&f.name))
+                })
+                .collect();
+            let mut index = 0;
+            self.each_physics(0.0, self.time, |physics, ctx| {
+                if fresh[index] {
+                    <dyn Material as DimensionDispatch<D>>::physics_stage(
+                        physics,
+                        crate::physics::Stage::Initialise,
+                        ctx,
+                    );
+                }
+                index += 1;
+            });
+            for stage in [
+                crate::physics::Stage::Prepare,
+                crate::physics::Stage::Finish,
+            ] {
+                self.physics_stage(stage, 0.0);
+            }
+            self.physics_dt = self.compute_physics_dt();
+        }
+        // A stage before without mechanics never updated the stress: the free strain its
+        // physics applied (thermal expansion, cure shrinkage) is not in it yet. Take the
+        // stress of the state handed over, as a run's start does.
+        if c.state("mechanics_off").as_bool() == Some(true) {
+            self.update_stresses(0.0);
+        }
+        self.ledger = crate::energy_ledger::EnergyLedger::default();
+        self.kinematics = super::grid_to_particle::measure(&self.particles, self.settings.gravity);
+        self.energy0 = self.total_energy();
+        Ok(())
+    }
+
+    /// The kinematic and stress statistics of the last step (the next step's bound reads
+    /// them).
+    fn restore_statistics(&mut self, s: &mut Scalars) -> Result<(), CheckpointError> {
         let k = &mut self.kinematics;
         k.kinetic_energy = s.take()?;
         k.momentum = Vector::<D>::from_column_slice(&s.take_n::<D>()?);
@@ -249,22 +289,112 @@ where
         st.batch.max_wave_speed = wave;
         st.free_strain_work = free_work;
         st.plastic_work = plastic_work;
-        if let Some(r) = &mut self.reference {
-            r.restore_state(c.state("reference").clone())
-                .map_err(|e| CheckpointError::Invalid(format!("reference: {e}")))?;
-        }
-        let report = c.state("report");
-        self.report.maxima = serde_json::from_value(report["maxima"].clone())
-            .map_err(|e| CheckpointError::Invalid(format!("report.maxima: {e}")))?;
-        self.report.tables = serde_json::from_value(report["tables"].clone())
-            .map_err(|e| CheckpointError::Invalid(format!("report.tables: {e}")))?;
-        self.stress_scratch.restore(c)?;
-        if let Some(contact) = &mut self.contact {
-            contact.restore(c)?;
-        }
-        if let Some(mode) = &mut self.mode {
-            mode.restore(c)?;
-        }
         Ok(())
+    }
+
+    /// Restores the particles; `strict`: every field this run allocates must be there
+    /// (a resume), else fields the checkpoint lacks keep their start values (a stage).
+    /// Returns the shared physics fields taken from the checkpoint.
+    fn restore_particles(
+        &mut self,
+        c: &Checkpoint,
+        strict: bool,
+    ) -> Result<Vec<&'static str>, CheckpointError> {
+        let n = self.particles.len();
+        let p = &mut self.particles;
+        let by_vector = |x: &[f64]| vectors::<D>(x);
+        let by_matrix = |x: &[f64]| matrices::<D>(x);
+        let by_number = |x: &[f64]| x.to_vec();
+        restore_vec(
+            c,
+            "particles.position",
+            &mut p.position,
+            D,
+            by_vector,
+            strict,
+        )?;
+        restore_vec(
+            c,
+            "particles.velocity",
+            &mut p.velocity,
+            D,
+            by_vector,
+            strict,
+        )?;
+        restore_vec(c, "particles.mass", &mut p.mass, 1, by_number, strict)?;
+        restore_vec(c, "particles.volume0", &mut p.volume0, 1, by_number, strict)?;
+        let dd = D * D;
+        restore_vec(
+            c,
+            "particles.deformation_gradient",
+            &mut p.deformation_gradient,
+            dd,
+            by_matrix,
+            strict,
+        )?;
+        restore_vec(c, "particles.stress", &mut p.stress, dd, by_matrix, strict)?;
+        restore_vec(c, "particles.affine", &mut p.affine, dd, by_matrix, strict)?;
+        restore_vec(
+            c,
+            "particles.velocity_gradient",
+            &mut p.velocity_gradient,
+            dd,
+            by_matrix,
+            strict,
+        )?;
+        restore_vec(
+            c,
+            "particles.half_size",
+            &mut p.half_size,
+            1,
+            by_number,
+            strict,
+        )?;
+        restore_vec(
+            c,
+            "particles.initial_position",
+            &mut p.initial_position,
+            D,
+            by_vector,
+            strict,
+        )?;
+        let ids = c.get("particles.id", n)?;
+        let mut seen = vec![false; n];
+        for (id, &value) in p.id.iter_mut().zip(ids) {
+            let k = value as usize;
+            if value < 0.0 || value.fract() != 0.0 || k >= n || seen[k] {
+                return Err(CheckpointError::Invalid(
+                    "the particle ids are not a permutation of the particles".into(),
+                ));
+            }
+            seen[k] = true;
+            *id = k as u32;
+        }
+        let fields = c.get("particles.contact_field", p.contact_field.len())?;
+        for (f, &value) in p.contact_field.iter_mut().zip(fields) {
+            *f = value as u8;
+        }
+        for (g, group) in p.groups.iter_mut().enumerate() {
+            let len = group.range.len();
+            for (j, values) in group.state.iter_mut().enumerate() {
+                let name = format!("group.{g}.state.{j}");
+                let components = values.len() / len.max(1);
+                values.copy_from_slice(c.get(&name, len * components)?);
+            }
+        }
+        let names: Vec<&'static str> = p.shared.names().to_vec();
+        let mut carried = Vec::new();
+        for name in names {
+            if let Some(values) = p.shared.get_mut(name) {
+                let key = format!("shared.{name}");
+                if !strict && !c.arrays.contains_key(&key) {
+                    continue;
+                }
+                let len = values.len();
+                values.copy_from_slice(c.get(&key, len)?);
+                carried.push(name);
+            }
+        }
+        Ok(carried)
     }
 }

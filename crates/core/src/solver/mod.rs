@@ -35,6 +35,7 @@ mod quasi_static;
 mod run_loop;
 mod setup;
 mod simulation;
+mod stages;
 mod stats;
 pub mod stencil;
 mod stress_derivative;
@@ -200,6 +201,9 @@ pub fn run_scene(
         {
             sim.run(self.sink, self.observer)
         }
+    }
+    if !scene.stages.is_empty() {
+        return stages::run_stages(scene, sink, observer);
     }
     dispatch(scene, Run { sink, observer })
 }

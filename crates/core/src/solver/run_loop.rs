@@ -182,6 +182,11 @@ where
     /// Computes the initial stress and refuses a fixed time step above the stable one.
     pub fn preflight(&mut self) -> Result<(), RunError> {
         self.initialise();
+        self.check_fixed_dt()
+    }
+
+    /// Refuses a fixed time step above the stable one, or no step where nothing bounds it.
+    fn check_fixed_dt(&self) -> Result<(), RunError> {
         let stable = self.stable_dt();
         if let Some(dt) = self.settings.fixed_dt
             && dt > self.settings.max_cfl * stable
@@ -213,7 +218,7 @@ where
         sink: &mut dyn OutputSink,
         observer: &mut dyn RunObserver,
     ) -> Result<Metrics, RunError> {
-        self.run_from(sink, observer, None)
+        self.run_from(sink, observer, Start::Fresh)
     }
 
     /// Continues a run from `checkpoint` (written by this scene's run) to the end time;
@@ -224,24 +229,54 @@ where
         observer: &mut dyn RunObserver,
         checkpoint: &Checkpoint,
     ) -> Result<Metrics, RunError> {
-        self.run_from(sink, observer, Some(checkpoint))
+        self.run_from(sink, observer, Start::Resume(checkpoint))
+    }
+
+    /// Runs a stage of a staged scene from the state the stage before left (`handed_over`,
+    /// saved at its end) to this stage's end time; returns its metrics and the state it
+    /// leaves for the next stage.
+    pub fn run_stage(
+        &mut self,
+        sink: &mut dyn OutputSink,
+        observer: &mut dyn RunObserver,
+        handed_over: Option<&Checkpoint>,
+    ) -> Result<(Metrics, Checkpoint), RunError> {
+        let start = match handed_over {
+            Some(c) => Start::HandOver(c),
+            None => Start::Fresh,
+        };
+        let metrics = self.run_from(sink, observer, start)?;
+        let mut end = Checkpoint::default();
+        self.save_state(&mut end);
+        Ok((metrics, end))
     }
 
     fn run_from(
         &mut self,
         sink: &mut dyn OutputSink,
         observer: &mut dyn RunObserver,
-        checkpoint: Option<&Checkpoint>,
+        from: Start<'_>,
     ) -> Result<Metrics, RunError> {
-        let resumed_from_step = checkpoint.map(|c| c.state("step").as_u64().unwrap_or(0));
-        let mut run = match checkpoint {
-            None => {
+        let resumed_from_step = match from {
+            Start::Resume(c) => Some(c.state("step").as_u64().unwrap_or(0)),
+            _ => None,
+        };
+        let mut run = match from {
+            Start::Fresh => {
                 self.preflight()?;
                 None
             }
-            Some(c) => {
+            Start::Resume(c) => {
                 self.restore_state(c).map_err(resume_error)?;
                 Some(LoopState::load(c).map_err(resume_error)?)
+            }
+            Start::HandOver(c) => {
+                self.take_over(c).map_err(|e| RunError::Refused {
+                    path: "stages".into(),
+                    message: format!("the hand-over between stages failed: {e}"),
+                })?;
+                self.check_fixed_dt()?;
+                None
             }
         };
         let n = self.particles.len();
@@ -254,7 +289,6 @@ where
         })?;
         let start = Instant::now();
         let end_time = self.settings.end_time;
-        let frame_dt = end_time / self.settings.frames as f64;
         let mut dt;
         let affine_inertia = self.affine_inertia();
         let mut run = match run.take() {
@@ -263,6 +297,7 @@ where
                 let start_totals = self.write_frame(sink, 0, 0.0)?;
                 self.observe_reference(false);
                 LoopState {
+                    start_time: self.time,
                     frame: 1,
                     conservation: Tracker::new(start_totals),
                     mechanical_max: self.kinematics.kinetic_energy
@@ -278,6 +313,7 @@ where
             }
         };
         let energy0 = self.energy0;
+        let frame_dt = (end_time - run.start_time) / self.settings.frames as f64;
         let mut outcome = Outcome::Finished;
         let mut diagnostic = None;
         let eps = 1e-9 * frame_dt;
@@ -321,7 +357,7 @@ where
                 break;
             }
             // Land exactly on output times.
-            let next_frame_time = (run.frame as f64 * frame_dt).min(end_time);
+            let next_frame_time = (run.start_time + run.frame as f64 * frame_dt).min(end_time);
             if self.time + dt > next_frame_time - eps {
                 dt = next_frame_time - self.time;
             }
@@ -428,6 +464,7 @@ where
             ),
             frames: frame,
             resumed_from_step,
+            stages: Vec::new(),
             threads: rayon::current_num_threads(),
             diagnostic,
             physics: self.report.maxima.iter().cloned().collect(),
@@ -438,8 +475,21 @@ where
     }
 }
 
+/// Where a run starts.
+#[derive(Clone, Copy)]
+enum Start<'a> {
+    /// From the scene's initial state.
+    Fresh,
+    /// From a checkpoint of this same run.
+    Resume(&'a Checkpoint),
+    /// From the state the stage before left.
+    HandOver(&'a Checkpoint),
+}
+
 /// The run loop's running figures, kept in checkpoints.
 struct LoopState {
+    /// Simulated time the run (stage) started at; frames are spaced from it.
+    start_time: f64,
     /// The next output frame's index.
     frame: usize,
     conservation: Tracker,
@@ -458,7 +508,7 @@ struct LoopState {
 impl LoopState {
     fn save(&self, c: &mut Checkpoint, wall: f64) {
         let mut s = Scalars::new();
-        s.push(&[self.frame as f64]);
+        s.push(&[self.start_time, self.frame as f64]);
         self.conservation.save(&mut s);
         s.push(&[
             self.mechanical_max,
@@ -487,6 +537,7 @@ impl LoopState {
             .get("run.scalars")
             .ok_or_else(|| CheckpointError::Missing("run.scalars".into()))?;
         let mut s = Scalars::reading(all);
+        let start_time = s.take()?;
         let frame = s.take()? as usize;
         let conservation = Tracker::load(&mut s)?;
         let [
@@ -500,6 +551,7 @@ impl LoopState {
             slot,
         ] = s.take_n()?;
         Ok(Self {
+            start_time,
             frame,
             conservation,
             mechanical_max,

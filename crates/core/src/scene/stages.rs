@@ -1,0 +1,192 @@
+//! Staged scenes: an ordered list of stages (fill, cure, cool-down, thermal cycling), each
+//! the scene before it changed by a JSON merge patch (RFC 7396: an object merges key by
+//! key, `null` removes a key, anything else replaces), run on from where the stage before
+//! it ended, sharing the bodies, materials, domain and contact. Each stage is validated as
+//! a scene of its own; its `solver.end_time` is the (absolute) time the stage ends.
+
+use super::{Issue, Limits, ValidatedScene, parse_scene_value_limited};
+use crate::plugin::Registry;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One stage of a staged scene.
+#[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StageSpec {
+    /// Name of the stage (`fill`, `cure`, ...): its group in the result store is
+    /// `stages/<index>-<name>`. Letters, digits, `-`, `_`.
+    pub name: String,
+    /// Changes to the scene of the stage before (the base scene for the first): a JSON
+    /// merge patch. It must set `solver.end_time` later than the stage before ends, and may
+    /// not change `name`, `dimension`, `domain`, `materials`, `bodies` or `contact`.
+    #[serde(default)]
+    pub changes: serde_json::Value,
+}
+
+/// Top-level keys a stage may not change: the particles and the grid they live on carry
+/// over from stage to stage as they are.
+pub const FIXED_ACROSS_STAGES: &[&str] = &[
+    "name",
+    "dimension",
+    "domain",
+    "materials",
+    "bodies",
+    "contact",
+    "stages",
+];
+
+/// A validated stage: its name and its scene.
+pub struct ValidatedStage {
+    /// The stage's name.
+    pub name: String,
+    /// The scene this stage runs (the base with every change up to this stage applied).
+    pub scene: Box<ValidatedScene>,
+}
+
+/// Applies the merge patch `patch` to `target` (RFC 7396).
+pub fn merge_patch(target: &mut serde_json::Value, patch: &serde_json::Value) {
+    let Some(changes) = patch.as_object() else {
+        *target = patch.clone();
+        return;
+    };
+    if !target.is_object() {
+        *target = serde_json::Value::Object(serde_json::Map::new());
+    }
+    let Some(object) = target.as_object_mut() else {
+        return;
+    };
+    for (key, value) in changes {
+        if value.is_null() {
+            object.remove(key);
+        } else {
+            merge_patch(
+                object.entry(key.clone()).or_insert(serde_json::Value::Null),
+                value,
+            );
+        }
+    }
+}
+
+/// Validates every stage of `stages` against the base scene `base` (the scene document
+/// without its `stages`); issues carry the stage's path.
+pub(super) fn validate_stages(
+    base: &serde_json::Value,
+    stages: &[StageSpec],
+    registry: &Registry,
+    base_dir: &Path,
+    limits: &Limits,
+) -> Result<Vec<ValidatedStage>, Vec<Issue>> {
+    let mut issues = Vec::new();
+    let mut out = Vec::new();
+    let mut current = base.clone();
+    let mut previous_end = 0.0f64;
+    let mut names = std::collections::BTreeSet::new();
+    for (i, stage) in stages.iter().enumerate() {
+        let path = format!("stages[{i}]");
+        let name_ok = !stage.name.is_empty()
+            && stage
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+        if !name_ok {
+            issues.push(Issue::new(
+                format!("{path}.name"),
+                "must be letters, digits, `-` or `_` (it names the stage's group in the store)",
+            ));
+        }
+        if !names.insert(stage.name.clone()) {
+            issues.push(Issue::new(
+                format!("{path}.name"),
+                format!("a stage named `{}` comes earlier", stage.name),
+            ));
+        }
+        let Some(changes) = stage.changes.as_object() else {
+            issues.push(Issue::new(
+                format!("{path}.changes"),
+                "must be an object (a JSON merge patch of the scene)",
+            ));
+            continue;
+        };
+        for key in changes.keys() {
+            if FIXED_ACROSS_STAGES.contains(&key.as_str()) {
+                issues.push(Issue::new(
+                    format!("{path}.changes.{key}"),
+                    format!(
+                        "a stage may not change `{key}`: the particles, materials and grid carry \
+                         over from stage to stage (stages may change solver, physics, obstacles, \
+                         output, stop and reference)"
+                    ),
+                ));
+            }
+        }
+        merge_patch(&mut current, &stage.changes);
+        if current.pointer("/output/checkpoint").is_some() {
+            issues.push(Issue::new(
+                format!("{path}.changes.output.checkpoint"),
+                "checkpoints are not yet written in staged scenes (remove output.checkpoint)",
+            ));
+        }
+        let end = current
+            .pointer("/solver/end_time")
+            .and_then(|v| v.as_f64())
+            .unwrap_or(f64::NAN);
+        if end.is_nan() || end <= previous_end {
+            let before = if i == 0 {
+                "the start (0 s)".to_string()
+            } else {
+                format!("the previous stage's end ({previous_end} s)")
+            };
+            issues.push(Issue::new(
+                format!("{path}.changes.solver.end_time"),
+                format!(
+                    "the stage must end later than {before}: set solver.end_time to the time it \
+                     ends (absolute, not its duration)"
+                ),
+            ));
+        }
+        previous_end = end;
+        if !issues.is_empty() {
+            continue;
+        }
+        match parse_scene_value_limited(current.clone(), registry, base_dir, limits) {
+            Ok(scene) => out.push(ValidatedStage {
+                name: stage.name.clone(),
+                scene: Box::new(scene),
+            }),
+            Err(e) => issues.extend(e.issues.into_iter().map(|issue| {
+                let top = issue.path.split(['.', '[']).next().unwrap_or("");
+                let path = if changes.contains_key(top) {
+                    format!("{path}.changes.{}", issue.path)
+                } else {
+                    issue.path
+                };
+                Issue::new(
+                    path,
+                    format!("in stage `{}`: {}", stage.name, issue.message),
+                )
+            })),
+        }
+    }
+    if issues.is_empty() {
+        Ok(out)
+    } else {
+        Err(issues)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn merge_patch_follows_rfc_7396() {
+        let mut target = json!({"a": "b", "c": {"d": "e", "f": "g"}, "k": [1, 2]});
+        merge_patch(
+            &mut target,
+            &json!({"a": "z", "c": {"f": null, "h": 1}, "k": [3]}),
+        );
+        assert_eq!(target, json!({"a": "z", "c": {"d": "e", "h": 1}, "k": [3]}));
+    }
+}
