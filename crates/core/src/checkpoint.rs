@@ -62,6 +62,15 @@ impl Checkpoint {
         Ok(values)
     }
 
+    /// The array of scalars `name`, to read in the order it was written.
+    pub fn scalars(&self, name: &str) -> Result<Scalars, CheckpointError> {
+        let values = self
+            .arrays
+            .get(name)
+            .ok_or_else(|| CheckpointError::Missing(name.into()))?;
+        Ok(Scalars::reading(values))
+    }
+
     /// A JSON member of the structured state (`Null` when absent).
     pub fn state(&self, key: &str) -> &serde_json::Value {
         self.state.get(key).unwrap_or(&serde_json::Value::Null)

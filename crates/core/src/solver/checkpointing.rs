@@ -151,15 +151,8 @@ where
     /// the same scene (not initialised).
     pub(super) fn restore_state(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
         self.restore_particles(c, true)?;
-        let all = c
-            .arrays
-            .get("simulation.scalars")
-            .ok_or_else(|| CheckpointError::Missing("simulation.scalars".into()))?;
-        let mut s = Scalars::reading(all);
-        let [time, steps, sort_counter, energy0, physics_dt, relax] = s.take_n()?;
-        self.time = time;
-        self.steps = steps as u64;
-        self.sort_counter = sort_counter as u64;
+        let mut s = self.restore_clock(c)?;
+        let [energy0, physics_dt, relax] = s.take_n()?;
         self.energy0 = energy0;
         self.physics_dt = physics_dt;
         self.relax_time = (!relax.is_nan()).then_some(relax);
@@ -206,16 +199,9 @@ where
     /// initialised, and the energy balance, reference, report and mode start afresh.
     pub(super) fn take_over(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
         let carried = self.restore_particles(c, false)?;
-        let all = c
-            .arrays
-            .get("simulation.scalars")
-            .ok_or_else(|| CheckpointError::Missing("simulation.scalars".into()))?;
-        let mut s = Scalars::reading(all);
-        let [time, steps, sort_counter, _energy0, _physics_dt, _relax] = s.take_n()?;
-        self.time = time;
-        self.steps = steps as u64;
-        self.sort_counter = sort_counter as u64;
-        let _ledger: [f64; 6] = s.take_n()?;
+        let mut s = self.restore_clock(c)?;
+        // The energy balance and the physics step bound start afresh.
+        let _: [f64; 3 + 6] = s.take_n()?;
         self.restore_statistics(&mut s)?;
         self.stress_scratch.restore(c)?;
         if let Some(contact) = &mut self.contact {
@@ -270,6 +256,16 @@ where
         self.kinematics = super::grid_to_particle::measure(&self.particles, self.settings.gravity);
         self.energy0 = self.total_energy();
         Ok(())
+    }
+
+    /// The clock, step and reorder counters; returns the simulation's scalars after them.
+    fn restore_clock(&mut self, c: &Checkpoint) -> Result<Scalars, CheckpointError> {
+        let mut s = c.scalars("simulation.scalars")?;
+        let [time, steps, sort_counter] = s.take_n()?;
+        self.time = time;
+        self.steps = steps as u64;
+        self.sort_counter = sort_counter as u64;
+        Ok(s)
     }
 
     /// The kinematic and stress statistics of the last step (the next step's bound reads

@@ -189,23 +189,17 @@ pub fn run_scene(
     sink: &mut dyn OutputSink,
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
-    struct Run<'a> {
-        sink: &'a mut dyn OutputSink,
-        observer: &'a mut dyn RunObserver,
-    }
-    impl SimulationVisitor for Run<'_> {
-        type Output = Result<Metrics, RunError>;
-        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
-        where
-            dyn Material: DimensionDispatch<D>,
-        {
-            sim.run(self.sink, self.observer)
-        }
-    }
     if !scene.stages.is_empty() {
         return stages::run_stages(scene, sink, observer);
     }
-    dispatch(scene, Run { sink, observer })
+    dispatch(
+        scene,
+        Run {
+            sink,
+            observer,
+            checkpoint: None,
+        },
+    )
 }
 
 /// Continues a run of `scene` from `checkpoint` (the latest one its store holds) to the
@@ -216,28 +210,34 @@ pub fn resume_scene(
     sink: &mut dyn OutputSink,
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
-    struct Resume<'a> {
-        checkpoint: &'a crate::checkpoint::Checkpoint,
-        sink: &'a mut dyn OutputSink,
-        observer: &'a mut dyn RunObserver,
-    }
-    impl SimulationVisitor for Resume<'_> {
-        type Output = Result<Metrics, RunError>;
-        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
-        where
-            dyn Material: DimensionDispatch<D>,
-        {
-            sim.resume(self.sink, self.observer, self.checkpoint)
-        }
-    }
     dispatch(
         scene,
-        Resume {
-            checkpoint,
+        Run {
             sink,
             observer,
+            checkpoint: Some(checkpoint),
         },
     )
+}
+
+/// A run from the start, or from a checkpoint of it.
+struct Run<'a> {
+    sink: &'a mut dyn OutputSink,
+    observer: &'a mut dyn RunObserver,
+    checkpoint: Option<&'a crate::checkpoint::Checkpoint>,
+}
+
+impl SimulationVisitor for Run<'_> {
+    type Output = Result<Metrics, RunError>;
+    fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
+        match self.checkpoint {
+            Some(c) => sim.resume(self.sink, self.observer, c),
+            None => sim.run(self.sink, self.observer),
+        }
+    }
 }
 
 /// Checks what only the built simulation can tell (the fixed time step against the stable

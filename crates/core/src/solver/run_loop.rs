@@ -532,11 +532,7 @@ impl LoopState {
                 c.state("format")
             )));
         }
-        let all = c
-            .arrays
-            .get("run.scalars")
-            .ok_or_else(|| CheckpointError::Missing("run.scalars".into()))?;
-        let mut s = Scalars::reading(all);
+        let mut s = c.scalars("run.scalars")?;
         let start_time = s.take()?;
         let frame = s.take()? as usize;
         let conservation = Tracker::load(&mut s)?;
