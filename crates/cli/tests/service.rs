@@ -336,6 +336,50 @@ fn queue_limit_and_cancellation() {
 }
 
 #[test]
+fn a_staged_scene_is_one_job_with_one_store() {
+    let data = tempfile::tempdir().unwrap();
+    let server = Server::start(data.path(), &[]);
+    let mut scene = bar_json();
+    scene["name"] = json!("bar-staged");
+    scene["output"]["frames"] = json!(4);
+    scene["stages"] = json!([
+        {"name": "first", "changes": {"solver": {"end_time": 0.1}}},
+        {"name": "second", "changes": {"solver": {"end_time": 0.3, "transfer": "pic"}}}
+    ]);
+    let r = submit(&server.url, &scene);
+    assert_eq!(r.status().as_u16(), 202);
+    let id = r.json::<Value>().unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let done = wait_final(&server.url, &id, Duration::from_secs(60));
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(done["progress"]["end_time"], 0.3, "the last stage's end");
+    let stages = done["metrics"]["stages"].as_array().unwrap();
+    assert_eq!(stages.len(), 2);
+    assert_eq!(stages[1]["end_time"], 0.3);
+    let out = tempfile::tempdir().unwrap();
+    let status = Command::new(env!("CARGO_BIN_EXE_mpm"))
+        .args(["fetch", &id, "--server", &server.url, "--out"])
+        .arg(out.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let store = mpm_io::ResultStore::open(out.path().join("bar-staged.zarr")).unwrap();
+    assert_eq!(store.stages(), ["0-first", "1-second"]);
+    assert_eq!(store.stage("second").unwrap().frame_count().unwrap(), 5);
+    // A stage's problem is refused at submission with its path.
+    scene["stages"][1]["changes"]["solver"]["end_time"] = json!(0.05);
+    let (code, body) = error_code(submit(&server.url, &scene));
+    assert_eq!(code, 422, "{body}");
+    assert!(
+        body.to_string()
+            .contains("stages[1].changes.solver.end_time"),
+        "{body}"
+    );
+}
+
+#[test]
 fn a_killed_server_resumes_its_jobs_with_the_same_results() {
     let data = tempfile::tempdir().unwrap();
     let mut scene = bar_json();

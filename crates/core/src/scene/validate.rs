@@ -39,6 +39,13 @@ impl ValidatedScene {
     pub fn particle_count(&self) -> usize {
         self.bodies.iter().map(|b| b.volumes.len()).sum()
     }
+
+    /// The time the run ends: the scene's end time, or the last stage's.
+    pub fn end_time(&self) -> f64 {
+        self.stages.last().map_or(self.scene.solver.end_time, |s| {
+            s.scene.scene.solver.end_time
+        })
+    }
 }
 
 /// The per-particle output field of a scene with a bonded (`cohesive`) interface: the

@@ -253,7 +253,21 @@ pub fn preflight(scene: &ValidatedScene) -> Result<(), RunError> {
             sim.preflight()
         }
     }
-    dispatch(scene, Check)
+    if scene.stages.is_empty() {
+        return dispatch(scene, Check);
+    }
+    // Each stage from its own initial state: a later stage starts from another state, but
+    // what bounds its step (or that nothing does) shows already.
+    for (i, stage) in scene.stages.iter().enumerate() {
+        dispatch(&stage.scene, Check).map_err(|e| match e {
+            RunError::Refused { path, message } => RunError::Refused {
+                path: format!("stages[{i}] ({}): {path}", stage.name),
+                message,
+            },
+            other => other,
+        })?;
+    }
+    Ok(())
 }
 
 /// Steps a scene would take at its initial state's time step, without running a step (see
@@ -269,7 +283,18 @@ pub fn estimated_steps(scene: &ValidatedScene) -> f64 {
             sim.estimated_steps()
         }
     }
-    dispatch(scene, Steps)
+    if scene.stages.is_empty() {
+        return dispatch(scene, Steps);
+    }
+    // Each stage's share of its own estimate (which runs from time 0 to its end).
+    let mut start = 0.0;
+    let mut total = 0.0;
+    for stage in &scene.stages {
+        let end = stage.scene.scene.solver.end_time;
+        total += dispatch(&stage.scene, Steps) * (end - start) / end;
+        start = end;
+    }
+    total
 }
 
 /// Particle storage a scene allocates, bytes per particle, without running it.

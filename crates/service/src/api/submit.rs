@@ -297,6 +297,6 @@ fn check_scene(
         name: validated.scene.name.clone(),
         scene: validated.json.to_string(),
         particles: validated.particle_count(),
-        end_time: validated.scene.solver.end_time,
+        end_time: validated.end_time(),
     })
 }
