@@ -257,8 +257,14 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                     eprintln!("error: {}: {e}", scene.display());
                     return Ok(ExitStatus::InvalidInput);
                 }
+                let stages = if v.stages.is_empty() {
+                    String::new()
+                } else {
+                    let names: Vec<&str> = v.stages.iter().map(|s| s.name.as_str()).collect();
+                    format!(", stages {}", names.join(" → "))
+                };
                 outln!(
-                    "{}: valid ({}D, {} particles in {} bodies, {} material(s))",
+                    "{}: valid ({}D, {} particles in {} bodies, {} material(s){stages})",
                     scene.display(),
                     v.scene.dimension,
                     v.particle_count(),
