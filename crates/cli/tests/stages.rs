@@ -236,11 +236,6 @@ fn stage_problems_are_named_by_their_path() {
                    {"name": "a", "changes": {"solver": {"end_time": 0.3}}}]),
             "stages[1].name: a stage named `a` comes earlier",
         ),
-        (
-            json!([{"name": "a", "changes": {"solver": {"end_time": 0.2},
-                    "output": {"checkpoint": {"steps": 10}}}}]),
-            "stages[0].changes.output.checkpoint",
-        ),
     ];
     for (stages, expected) in cases {
         let mut s = scene("vibrating-bar.json");

@@ -63,7 +63,7 @@ pub struct StageInfo<'a> {
 }
 
 /// The figures of one stage of a staged run, in the run's metrics.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct StageSummary {
     /// The stage's name.
     pub name: String,
@@ -146,7 +146,7 @@ impl OutputSink for NullSink {
 }
 
 /// How a run ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
     /// Reached the end time.

@@ -79,10 +79,18 @@ impl ZarrSink {
     fn reopen(&mut self, info: &RunInfo<'_>, frames: u64) -> Result<(), IoError> {
         let path = self.path.clone();
         let store = Arc::new(FilesystemStore::new(&path).map_err(|e| zerr(&path, e))?);
+        let prefix = self.prefix().to_string();
         let mut root = Group::open(store.clone(), "/").map_err(|e| zerr(&path, e))?;
         root.attributes_mut()
             .insert("metrics".into(), serde_json::Value::Null);
         root.store_metadata().map_err(|e| zerr(&path, e))?;
+        if !prefix.is_empty() {
+            let mut group = Group::open(store.clone(), &prefix).map_err(|e| zerr(&path, e))?;
+            group
+                .attributes_mut()
+                .insert("metrics".into(), serde_json::Value::Null);
+            group.store_metadata().map_err(|e| zerr(&path, e))?;
+        }
         let open = |name: &str| -> Result<Array<FilesystemStore>, IoError> {
             let array = Array::open(store.clone(), name).map_err(|e| zerr(&path, e))?;
             if array.shape().first().copied().unwrap_or(0) < frames {
@@ -93,19 +101,19 @@ impl ZarrSink {
             }
             Ok(array)
         };
-        let mut time = open("/time")?;
+        let mut time = open(&format!("{prefix}/time"))?;
         time.set_shape(vec![frames]).map_err(|e| zerr(&path, e))?;
         time.store_metadata().map_err(|e| zerr(&path, e))?;
         self.diagnostics = Vec::new();
         for name in FRAME_DIAGNOSTICS {
-            let mut array = open(&format!("/diagnostics/{name}"))?;
+            let mut array = open(&format!("{prefix}/diagnostics/{name}"))?;
             array.set_shape(vec![frames]).map_err(|e| zerr(&path, e))?;
             array.store_metadata().map_err(|e| zerr(&path, e))?;
             self.diagnostics.push(array);
         }
         self.fields = Vec::new();
         for field in info.fields {
-            let mut array = open(&format!("/particles/{}", field.name))?;
+            let mut array = open(&format!("{prefix}/particles/{}", field.name))?;
             let mut shape = array.shape().to_vec();
             shape[0] = frames;
             array.set_shape(shape.clone()).map_err(|e| zerr(&path, e))?;
@@ -279,7 +287,9 @@ impl ZarrSink {
 
 impl OutputSink for ZarrSink {
     fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
-        match self.resume_after {
+        // Only the run (stage) the checkpoint was written in continues; later stages of a
+        // resumed staged run are written afresh.
+        match self.resume_after.take() {
             Some(frames) => self.reopen(info, frames).map_err(out),
             None => self.create(info).map_err(out),
         }

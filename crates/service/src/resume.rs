@@ -32,7 +32,6 @@ fn checkpoint_of_same_scene(
     store: &Path,
     scene: &serde_json::Value,
 ) -> Option<mpm_core::checkpoint::Checkpoint> {
-    scene.pointer("/output/checkpoint")?;
     let stored = mpm_io::ResultStore::open(store).ok()?;
     if stored.attributes().get("scene") != Some(scene) {
         return None;

@@ -121,12 +121,6 @@ pub(super) fn validate_stages(
             }
         }
         merge_patch(&mut current, &stage.changes);
-        if current.pointer("/output/checkpoint").is_some() {
-            issues.push(Issue::new(
-                format!("{path}.changes.output.checkpoint"),
-                "checkpoints are not yet written in staged scenes (remove output.checkpoint)",
-            ));
-        }
         let end = current
             .pointer("/solver/end_time")
             .and_then(|v| v.as_f64())

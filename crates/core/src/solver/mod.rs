@@ -190,7 +190,7 @@ pub fn run_scene(
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
     if !scene.stages.is_empty() {
-        return stages::run_stages(scene, sink, observer);
+        return stages::run_stages(scene, sink, observer, None);
     }
     dispatch(
         scene,
@@ -210,6 +210,9 @@ pub fn resume_scene(
     sink: &mut dyn OutputSink,
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
+    if !scene.stages.is_empty() {
+        return stages::run_stages(scene, sink, observer, Some(checkpoint));
+    }
     dispatch(
         scene,
         Run {

@@ -233,17 +233,19 @@ where
     }
 
     /// Runs a stage of a staged scene from the state the stage before left (`handed_over`,
-    /// saved at its end) to this stage's end time; returns its metrics and the state it
-    /// leaves for the next stage.
+    /// saved at its end; with `resume`, a checkpoint of this stage) to this stage's end
+    /// time; returns its metrics and the state it leaves for the next stage.
     pub fn run_stage(
         &mut self,
         sink: &mut dyn OutputSink,
         observer: &mut dyn RunObserver,
         handed_over: Option<&Checkpoint>,
+        resume: bool,
     ) -> Result<(Metrics, Checkpoint), RunError> {
-        let start = match handed_over {
-            Some(c) => Start::HandOver(c),
-            None => Start::Fresh,
+        let start = match (handed_over, resume) {
+            (Some(c), true) => Start::Resume(c),
+            (Some(c), false) => Start::HandOver(c),
+            (None, _) => Start::Fresh,
         };
         let metrics = self.run_from(sink, observer, start)?;
         let mut end = Checkpoint::default();
@@ -397,6 +399,9 @@ where
                 let wall = run.wall_before + start.elapsed().as_secs_f64();
                 run.save(&mut c, wall);
                 self.save_state(&mut c);
+                if !self.stage_tag.is_null() {
+                    c.set_state("stage", self.stage_tag.clone());
+                }
                 sink.write_checkpoint(&c)?;
             }
             let progress = Progress {

@@ -230,6 +230,7 @@ where
             fields,
             staging,
             scene_json: v.json.clone(),
+            stage_tag: serde_json::Value::Null,
             name: s.name.clone(),
             time: 0.0,
             steps: 0,

@@ -94,6 +94,9 @@ pub struct Simulation<const D: usize, K: Kernel> {
     pub(super) sort_counter: u64,
     /// Grid velocity fields of contact between bodies (`None` without a `contact` section).
     pub(super) contact: Option<MultiField<D>>,
+    /// What a staged run adds to every checkpoint's state (`stage`: the stage's index and
+    /// the summaries of the stages before); `Null` outside staged runs.
+    pub(super) stage_tag: serde_json::Value,
     /// The time-integration mode (taken out while it advances the simulation).
     pub(super) mode: Option<Box<dyn StepMode<D, K>>>,
     pub(super) _kernel: std::marker::PhantomData<K>,

@@ -12,18 +12,22 @@ use crate::material::Material;
 use crate::output::{Metrics, Outcome, OutputSink, StageInfo, StageSummary};
 use crate::scene::ValidatedScene;
 
-/// Runs every stage of `scene` in order into `sink`; stops after a stage that did not
-/// finish. Returns the whole run's metrics: the last stage's figures, wall time and
-/// steps over all stages, and `stages` with each stage's summary.
+/// Runs every stage of `scene` in order into `sink` (from `resume`, a checkpoint written
+/// in one of its stages, when given); stops after a stage that did not finish. Returns the
+/// whole run's metrics: the last stage's figures, wall time and steps over all stages,
+/// and `stages` with each stage's summary.
 pub(super) fn run_stages(
     scene: &ValidatedScene,
     sink: &mut dyn OutputSink,
     observer: &mut dyn RunObserver,
+    resume: Option<&Checkpoint>,
 ) -> Result<Metrics, RunError> {
     struct Stage<'a> {
         sink: &'a mut dyn OutputSink,
         observer: &'a mut dyn RunObserver,
         handed_over: Option<&'a Checkpoint>,
+        resume: bool,
+        tag: serde_json::Value,
     }
     impl SimulationVisitor for Stage<'_> {
         type Output = Result<(Metrics, Checkpoint), RunError>;
@@ -31,33 +35,48 @@ pub(super) fn run_stages(
         where
             dyn Material: DimensionDispatch<D>,
         {
-            sim.run_stage(self.sink, self.observer, self.handed_over)
+            sim.stage_tag = self.tag;
+            sim.run_stage(self.sink, self.observer, self.handed_over, self.resume)
         }
     }
-    let mut handed_over: Option<Checkpoint> = None;
-    let mut summaries = Vec::new();
-    let mut wall = 0.0;
+    let (first, mut summaries) = match resume {
+        None => (0, Vec::new()),
+        Some(c) => resumed_stage(c, scene.stages.len())?,
+    };
+    let mut handed_over: Option<Checkpoint> = resume.cloned();
     let mut last = Metrics::default();
-    for (index, stage) in scene.stages.iter().enumerate() {
+    let mut steps_before = summaries
+        .iter()
+        .map(|s: &StageSummary| s.steps)
+        .sum::<u64>();
+    for (index, stage) in scene.stages.iter().enumerate().skip(first) {
         sink.begin_stage(&StageInfo {
             index,
             name: &stage.name,
             scene: &scene.json,
         })?;
-        let steps_before = last.steps;
-        let start_time = handed_over
-            .as_ref()
-            .and_then(|c| c.state("time").as_f64())
-            .unwrap_or(0.0);
+        let start_time = match (index == first, resume) {
+            (true, Some(c)) => c.state("stage")["start_time"].as_f64().unwrap_or(0.0),
+            _ => handed_over
+                .as_ref()
+                .and_then(|c| c.state("time").as_f64())
+                .unwrap_or(0.0),
+        };
+        let tag = serde_json::json!({
+            "index": index,
+            "start_time": start_time,
+            "summaries": summaries,
+        });
         let (metrics, end) = dispatch(
             &stage.scene,
             Stage {
                 sink: &mut *sink,
                 observer: &mut *observer,
                 handed_over: handed_over.as_ref(),
+                resume: resume.is_some() && index == first,
+                tag,
             },
         )?;
-        wall += metrics.wall_seconds;
         summaries.push(StageSummary {
             name: stage.name.clone(),
             outcome: metrics.outcome,
@@ -68,6 +87,7 @@ pub(super) fn run_stages(
             error: metrics.error,
             energy_drift: metrics.energy_drift,
         });
+        steps_before = metrics.steps;
         let finished = metrics.outcome == Some(Outcome::Finished);
         last = metrics;
         handed_over = Some(end);
@@ -75,6 +95,7 @@ pub(super) fn run_stages(
             break;
         }
     }
+    let wall: f64 = summaries.iter().map(|s| s.wall_seconds).sum();
     last.wall_seconds = wall;
     last.particle_steps_per_second = if wall > 0.0 {
         last.steps as f64 * last.particles as f64 / wall
@@ -84,4 +105,32 @@ pub(super) fn run_stages(
     last.stages = summaries;
     sink.finish_stages(&last)?;
     Ok(last)
+}
+
+/// The stage a checkpoint of a staged run was written in, and the summaries of the stages
+/// before it.
+fn resumed_stage(c: &Checkpoint, stages: usize) -> Result<(usize, Vec<StageSummary>), RunError> {
+    let refuse = |message: String| RunError::Refused {
+        path: "checkpoint".into(),
+        message,
+    };
+    let tag = c.state("stage");
+    let index = tag["index"]
+        .as_u64()
+        .map(|i| i as usize)
+        .filter(|&i| i < stages)
+        .ok_or_else(|| {
+            refuse(format!(
+                "the checkpoint names no stage of this scene ({tag})"
+            ))
+        })?;
+    let summaries: Vec<StageSummary> = serde_json::from_value(tag["summaries"].clone())
+        .map_err(|e| refuse(format!("the checkpoint's stage summaries: {e}")))?;
+    if summaries.len() != index {
+        return Err(refuse(format!(
+            "the checkpoint has {} stage summaries before stage {index}",
+            summaries.len()
+        )));
+    }
+    Ok((index, summaries))
 }
