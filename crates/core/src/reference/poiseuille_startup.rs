@@ -11,7 +11,9 @@ use std::sync::Arc;
 /// Plane Poiseuille flow starting from rest under a constant pressure gradient between
 /// no-slip plates at `wall` and `wall + gap` on `cross_axis` (Fourier series solution).
 /// The measured velocity is the shared particle field `flow_velocity_x`, `_y` or `_z`
-/// for `axis` 0, 1 or 2; error: RMS velocity error over particles and output frames
+/// for `axis` 0, 1 or 2 where a physics (underfill's cross-section mode) creates it, else
+/// the particles' own velocity along `axis` (liquid particles moved by the mechanics);
+/// error: RMS velocity error over particles and output frames
 /// after t = 0, divided by the steady centre-line velocity `G h²/(8μ)`.
 #[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
@@ -51,12 +53,14 @@ impl ReferenceLaw for PoiseuilleStartup {
         let p = &self.p;
         let name = ["flow_velocity_x", "flow_velocity_y", "flow_velocity_z"];
         let particles = frame.particles;
-        let Some(velocity) = name.get(p.axis).and_then(|n| particles.shared.get(n)) else {
-            return;
-        };
-        if frame.time <= 0.0 || p.cross_axis >= D || velocity.is_empty() {
+        if frame.time <= 0.0 || p.cross_axis >= D || p.axis >= D || particles.is_empty() {
             return;
         }
+        let shared = name.get(p.axis).and_then(|n| particles.shared.get(n));
+        let velocity = |i: usize| match shared {
+            Some(field) => field[i],
+            None => particles.velocity[i][p.axis],
+        };
         let exact = poiseuille_startup_profile(
             frame.time,
             p.gap,
@@ -66,14 +70,15 @@ impl ReferenceLaw for PoiseuilleStartup {
         );
         let centre = p.pressure_gradient * p.gap * p.gap / (8.0 * p.viscosity);
         let (mut sum, mut sum_exact) = (0.0, 0.0);
-        for (x, u) in particles.position.iter().zip(velocity) {
+        for (i, x) in particles.position.iter().enumerate() {
+            let u = velocity(i);
             let u_exact = exact(x[p.cross_axis] - p.wall);
             self.squared_error += ((u - u_exact) / centre).powi(2);
             self.count += 1.0;
             sum += u;
             sum_exact += u_exact;
         }
-        let n = velocity.len() as f64;
+        let n = particles.position.len() as f64;
         self.measured = Some(sum / n);
         self.expected = Some(sum_exact / n);
     }
@@ -304,6 +309,32 @@ mod tests {
         let mean_exact = ys.iter().map(|&y| exact(y)).sum::<f64>() / 4.0;
         assert!((r.expected().unwrap() - mean_exact).abs() < 1e-12 * centre);
         assert!((r.measured().unwrap() - mean_exact - 0.01 * centre).abs() < 1e-12 * centre);
+    }
+
+    #[test]
+    fn poiseuille_startup_reads_the_particle_velocity_without_a_flow_field() {
+        let (h, g, mu, rho) = (1e-3, 1e4, 0.5, 1000.0);
+        let json = poiseuille(serde_json::json!({}));
+        let ys = [0.25e-3, 0.75e-3];
+        let positions: Vec<[f64; 2]> = ys.iter().map(|y| [0.0, *y]).collect();
+        let mut p = test_particles(&positions, &[1.0; 2], &[]);
+        let t = 0.1 * rho * h * h / mu;
+        let exact = poiseuille_startup_profile(t, h, g, mu, rho);
+        let centre = g * h * h / (8.0 * mu);
+        for (v, y) in p.velocity.iter_mut().zip(ys) {
+            v[0] = exact(y) - 0.02 * centre;
+            v[1] = centre;
+        }
+        let mut r = factory()
+            .build(&json, "reference", &test_scene(2))
+            .expect("a valid reference")
+            .start();
+        r.observe_2d(Frame {
+            particles: &p,
+            time: t,
+            last: true,
+        });
+        assert!((r.error().unwrap() - 0.02).abs() < 1e-12, "{:?}", r.error());
     }
 
     #[test]

@@ -16,8 +16,15 @@
 //!    Cells behind a wall surface or inside an obstacle are neither: walls are a natural
 //!    ∂p/∂n = 0 boundary, open domain faces are free surface (p = 0). Solved by core's Jacobi-preconditioned CG, warm
 //!    started from the last pressure.
-//! 3. Projection: v = v* - (dt/m_i) Σ_c ∫_c N_i ∇p, then the walls and obstacles again, so
-//!    no liquid crosses them.
+//! 3. Projection: v = v* - (dt/M_i) Σ_c ∫_c N_i ∇p with the lumped mass of the same cells,
+//!    M_i = Σ_c ρ_c ∫_c N_i (not the P2G mass: with B-splines a node beside a wall or the
+//!    surface gets a P2G mass other than ρ∫N_i over the liquid cells, and a uniform ∇p/ρ
+//!    would not cancel gravity there). B-spline kernels reach one node beyond the corners
+//!    of a particle's cell, so nodes above the free surface and behind walls carry mass
+//!    the cells do not cover; they get the velocity change of their neighbours
+//!    (extrapolated, as PIC/FLIP/APIC liquid solvers extrapolate the projected velocity
+//!    into the air), not free fall. Then the walls and obstacles again, so no liquid
+//!    crosses them.
 //! 4. G2P (velocities, positions, velocity gradient), physics, viscous stress; the nodal
 //!    pressure is interpolated to the particles' `pressure` field.
 //!
@@ -67,6 +74,15 @@ pub(super) struct Incompressible<const D: usize> {
     cell_solid: Vec<bool>,
     /// Per node: 1/diagonal on the free (pressure-unknown) nodes, 0 on the free surface.
     inverse_diagonal: Vec<f64>,
+    /// Per node: the projection's lumped mass Σ_c ρ_c ∫_c N_i over the liquid cells (0 off
+    /// them), the mass that the gradient ∫N_i ∇p and the Laplacian's 1/ρ_c belong to.
+    lumped_mass: Vec<f64>,
+    /// Per node: the projection's velocity change -(dt/M_i) Σ_c ∫_c N_i ∇p, extrapolated to
+    /// the nodes that carry P2G mass outside the liquid cells.
+    correction: Vec<Vector<D>>,
+    /// Per node: 0 where `correction` comes from the liquid cells, k where it was
+    /// extrapolated in pass k, `u8::MAX` where it is not set.
+    layer: Vec<u8>,
     pressure: Vec<f64>,
     rhs: Vec<f64>,
     r: Vec<f64>,
@@ -88,6 +104,9 @@ impl<const D: usize> Incompressible<D> {
             cell_solid: Vec::new(),
             free_velocity: Vec::new(),
             inverse_diagonal: Vec::new(),
+            lumped_mass: Vec::new(),
+            correction: Vec::new(),
+            layer: Vec::new(),
             pressure: Vec::new(),
             rhs: Vec::new(),
             r: Vec::new(),
@@ -158,8 +177,11 @@ impl<const D: usize> Incompressible<D> {
             .collect();
         let n = grid.len();
         self.free_velocity = vec![Vector::<D>::zeros(); n];
+        self.correction = vec![Vector::<D>::zeros(); n];
+        self.layer = vec![u8::MAX; n];
         for v in [
             &mut self.inverse_diagonal,
+            &mut self.lumped_mass,
             &mut self.pressure,
             &mut self.rhs,
             &mut self.r,
@@ -387,14 +409,35 @@ impl<const D: usize> Incompressible<D> {
                 ),
             });
         }
-        // Projection of the velocity before the walls: v -= dt/m ∫ N ∇p over the liquid
-        // cells.
-        sim.grid.momentum.copy_from_slice(&self.free_velocity);
+        self.pressure_correction(dt, sim.grid.dx);
+        self.extrapolate_correction(&sim.grid);
+        // Projection of the velocity before the walls, then the walls.
+        for (i, v) in sim.grid.momentum.iter_mut().enumerate() {
+            *v = self.free_velocity[i];
+            if self.layer[i] != u8::MAX {
+                *v += self.correction[i];
+            }
+        }
+        apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// The projection's velocity change at the nodes of the liquid cells:
+    /// -(dt/M_i) Σ_c ∫_c N_i ∇p with the lumped mass M_i = Σ_c ρ_c ∫_c N_i of the same
+    /// cells. A uniform ∇p/ρ (hydrostatics) then changes every one of those nodes by the
+    /// same -dt ∇p/ρ, whatever mass P2G gave them (with B-splines a node next to a wall or
+    /// the surface has a P2G mass that differs from ρ∫N_i over the liquid cells).
+    fn pressure_correction(&mut self, dt: f64, dx: f64) {
+        let corners = 1 << D;
+        // ∫_c N_a over one full cell: dx^D / 2^D.
+        let share = (0..D).fold(1.0, |v, _| v * 0.5 * dx);
+        self.lumped_mass.fill(0.0);
+        self.correction.fill(Vector::<D>::zeros());
         let mut grad = [[0.0; 3]; MAX_CORNERS];
         for c in 0..self.cell_mass.len() {
             if self.cell_volume[c] <= 0.0 {
                 continue;
             }
+            let rho = self.cell_mass[c] / self.cell_volume[c];
             let base = self.cell_node[c];
             for (a, g) in grad.iter_mut().enumerate().take(corners) {
                 for (d, gd) in g.iter_mut().enumerate().take(D) {
@@ -407,15 +450,80 @@ impl<const D: usize> Incompressible<D> {
             }
             for (a, g) in grad.iter().enumerate().take(corners) {
                 let node = base + self.corner_offset[a];
-                let m = sim.grid.mass[node];
-                if m > 0.0 {
-                    for (d, gd) in g.iter().enumerate().take(D) {
-                        sim.grid.momentum[node][d] -= dt * gd / m;
-                    }
+                self.lumped_mass[node] += rho * share;
+                for (d, gd) in g.iter().enumerate().take(D) {
+                    self.correction[node][d] += gd;
                 }
             }
         }
-        apply_boundaries(sim, sim.time + dt);
+        for ((m, c), layer) in self
+            .lumped_mass
+            .iter()
+            .zip(self.correction.iter_mut())
+            .zip(self.layer.iter_mut())
+        {
+            if *m > 0.0 {
+                *c *= -dt / m;
+                *layer = 0;
+            } else {
+                *layer = u8::MAX;
+            }
+        }
+    }
+
+    /// Extrapolates the projection's velocity change to the nodes that carry P2G mass but
+    /// touch no liquid cell. A B-spline reaches one node beyond the corners of the cell a
+    /// particle lies in (quadratic and cubic alike), so such nodes lie above the free
+    /// surface and behind walls; left out they would keep the unprojected v* (free fall),
+    /// and G2P would hand that to the particles beside them every step. Each pass gives a
+    /// node still unset the mean of its already set neighbours (the 3^D - 1 around it),
+    /// reading only earlier passes, so the result does not depend on the node order: the
+    /// pressure acceleration ∇p/ρ continued at constant value over the kernel's reach, as
+    /// PIC/FLIP/APIC liquid solvers extrapolate the projected velocity into the air
+    /// (Zhu & Bridson 2005; Jiang et al. 2015). No node has such mass with the linear
+    /// kernel, so this changes nothing there.
+    fn extrapolate_correction(&mut self, grid: &crate::grid::Grid<D>) {
+        const PASSES: u8 = 2;
+        let offsets = (0..D).fold(1, |n, _| n * 3);
+        for pass in 1..=PASSES {
+            let mut unset = false;
+            for i in 0..grid.len() {
+                if self.layer[i] != u8::MAX || grid.mass[i] <= 0.0 {
+                    continue;
+                }
+                let ijk = node_coords(&grid.stride, i);
+                let mut sum = Vector::<D>::zeros();
+                let mut count = 0usize;
+                for k in 0..offsets {
+                    let mut rest = k;
+                    let mut j = 0usize;
+                    let mut inside = true;
+                    for (d, &at) in ijk.iter().enumerate().take(D) {
+                        let step = (rest % 3) as isize - 1;
+                        rest /= 3;
+                        let n = at as isize + step;
+                        if n < 0 || n >= grid.nodes[d] as isize {
+                            inside = false;
+                            break;
+                        }
+                        j += n as usize * grid.stride[d];
+                    }
+                    if inside && j != i && self.layer[j] < pass {
+                        sum += self.correction[j];
+                        count += 1;
+                    }
+                }
+                if count > 0 {
+                    self.correction[i] = sum / count as f64;
+                    self.layer[i] = pass;
+                } else {
+                    unset = true;
+                }
+            }
+            if !unset {
+                break;
+            }
+        }
     }
 
     /// Interpolates the nodal pressure (cell shape functions) into the liquids' `pressure`
