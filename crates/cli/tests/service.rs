@@ -70,6 +70,19 @@ fn wait_final(url: &str, id: &str, limit: Duration) -> Value {
     }
 }
 
+/// `mpm fetch` of a job into a temporary folder; the folder and the store opened.
+fn fetch(url: &str, id: &str, name: &str) -> (tempfile::TempDir, mpm_io::ResultStore) {
+    let out = tempfile::tempdir().unwrap();
+    let status = Command::new(env!("CARGO_BIN_EXE_mpm"))
+        .args(["fetch", id, "--server", url, "--out"])
+        .arg(out.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let store = mpm_io::ResultStore::open(out.path().join(format!("{name}.zarr"))).unwrap();
+    (out, store)
+}
+
 fn small_bar(end_time: f64) -> Value {
     let mut s = bar_json();
     s["solver"]["end_time"] = json!(end_time);
@@ -112,14 +125,7 @@ fn submit_watch_fetch_and_compare_with_a_local_run() {
     assert_eq!(done["metrics"]["error"].as_f64(), local.error);
 
     // `mpm fetch` brings the store home; it opens as a result store.
-    let out = tempfile::tempdir().unwrap();
-    let status = Command::new(env!("CARGO_BIN_EXE_mpm"))
-        .args(["fetch", &id, "--server", &server.url, "--out"])
-        .arg(out.path())
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let store = mpm_io::ResultStore::open(out.path().join("vibrating-bar.zarr")).unwrap();
+    let (_out, store) = fetch(&server.url, &id, "vibrating-bar");
     assert_eq!(store.frame_count().unwrap(), 41);
 
     // Listing with a status filter.
@@ -358,14 +364,7 @@ fn a_staged_scene_is_one_job_with_one_store() {
     let stages = done["metrics"]["stages"].as_array().unwrap();
     assert_eq!(stages.len(), 2);
     assert_eq!(stages[1]["end_time"], 0.3);
-    let out = tempfile::tempdir().unwrap();
-    let status = Command::new(env!("CARGO_BIN_EXE_mpm"))
-        .args(["fetch", &id, "--server", &server.url, "--out"])
-        .arg(out.path())
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let store = mpm_io::ResultStore::open(out.path().join("bar-staged.zarr")).unwrap();
+    let (_out, store) = fetch(&server.url, &id, "bar-staged");
     assert_eq!(store.stages(), ["0-first", "1-second"]);
     assert_eq!(store.stage("second").unwrap().frame_count().unwrap(), 5);
     // A stage's problem is refused at submission with its path.
