@@ -121,6 +121,7 @@ fn submit_watch_fetch_and_compare_with_a_local_run() {
 
     let done = job(&server.url, &id);
     assert_eq!(done["progress"]["fraction"], 1.0);
+    assert!(done["progress"].get("stage").is_none(), "{done}");
     let local = run(&load_example("vibrating-bar.json", &[]));
     assert_eq!(done["metrics"]["error"].as_f64(), local.error);
 
@@ -361,6 +362,7 @@ fn a_staged_scene_is_one_job_with_one_store() {
     let done = wait_final(&server.url, &id, Duration::from_secs(60));
     assert_eq!(done["status"], "succeeded", "{done}");
     assert_eq!(done["progress"]["end_time"], 0.3, "the last stage's end");
+    assert_eq!(done["progress"]["stage"], "second", "{done}");
     let stages = done["metrics"]["stages"].as_array().unwrap();
     assert_eq!(stages.len(), 2);
     assert_eq!(stages[1]["end_time"], 0.3);

@@ -65,6 +65,7 @@ pub(super) async fn submit(
             &checked.scene,
             checked.particles,
             checked.end_time,
+            checked.stages.as_deref(),
             caller.name.as_deref(),
             state.config.max_queued,
             state
@@ -183,6 +184,8 @@ struct CheckedScene {
     scene: String,
     particles: usize,
     end_time: f64,
+    /// A staged scene's `[[name, end_time], ...]` (JSON).
+    stages: Option<String>,
 }
 
 /// The service's own bounds on a job's work, beyond the scene limits.
@@ -298,5 +301,13 @@ fn check_scene(
         scene: validated.json.to_string(),
         particles: validated.particle_count(),
         end_time: validated.end_time(),
+        stages: (!validated.stages.is_empty()).then(|| {
+            let list: Vec<(&str, f64)> = validated
+                .stages
+                .iter()
+                .map(|s| (s.name.as_str(), s.scene.scene.solver.end_time))
+                .collect();
+            serde_json::to_string(&list).unwrap_or_default()
+        }),
     })
 }

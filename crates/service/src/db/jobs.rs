@@ -54,14 +54,15 @@ impl Db {
         scene: &str,
         particles: usize,
         end_time: f64,
+        stages: Option<&str>,
         owner: Option<&str>,
         max_queued: usize,
         max_per_user: Option<usize>,
     ) -> Result<Inserted, sqlx::Error> {
         let count =
             "SELECT COUNT(*) FROM jobs WHERE status = 'queued' AND (?1 IS NULL OR owner = ?1)";
-        let insert = "INSERT INTO jobs (id, name, status, scene, particles, end_time, owner) \
-             SELECT ?1, ?2, 'queued', ?3, ?4, ?5, ?6 \
+        let insert = "INSERT INTO jobs (id, name, status, scene, particles, end_time, owner, stages) \
+             SELECT ?1, ?2, 'queued', ?3, ?4, ?5, ?6, ?9 \
              WHERE (SELECT COUNT(*) FROM jobs WHERE status = 'queued') < ?7 \
              AND (?8 < 0 OR (SELECT COUNT(*) FROM jobs WHERE status = 'queued' AND owner = ?6) < ?8)";
         let per_user = max_per_user.map_or(-1, |m| m as i64);
@@ -83,6 +84,7 @@ impl Db {
                 .bind(owner)
                 .bind(max_queued as i64)
                 .bind(per_user)
+                .bind(stages)
                 .execute(&mut *tx)
                 .await?;
             tx.commit().await?;

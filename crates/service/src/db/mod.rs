@@ -178,7 +178,7 @@ mod lease_tests {
         let insert = |id: &'static str, owner: &'static str| {
             let db = db.clone();
             async move {
-                db.insert(id, "n", "{}", 1, 1.0, Some(owner), 10, Some(1))
+                db.insert(id, "n", "{}", 1, 1.0, None, Some(owner), 10, Some(1))
                     .await
                     .unwrap()
             }

@@ -22,10 +22,12 @@ pub struct JobRow {
     pub failure: Option<String>,
     pub owner: Option<String>,
     pub worker: Option<String>,
+    /// A staged scene's stages as JSON `[[name, end_time], ...]`.
+    pub stages: Option<String>,
 }
 
 pub(crate) const COLUMNS: &str = "id, name, status, particles, end_time, created_at, started_at, finished_at, \
-                       step, sim_time, wall_seconds, attempts, metrics, failure, owner, worker";
+                       step, sim_time, wall_seconds, attempts, metrics, failure, owner, worker, stages";
 
 /// Whether a status is final.
 pub fn is_final(status: &str) -> bool {
@@ -63,6 +65,10 @@ pub struct Progress {
     pub fraction: f64,
     pub wall_seconds: f64,
     pub eta_seconds: Option<f64>,
+    /// The stage the run is in (a staged scene only): the first whose end time it has not
+    /// passed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stage: Option<String>,
 }
 
 /// Where to find the rest of a job.
@@ -76,6 +82,17 @@ pub struct Links {
 }
 
 impl JobRow {
+    /// The stage a staged job's clock is in.
+    fn stage(&self) -> Option<String> {
+        let stages: Vec<(String, f64)> = serde_json::from_str(self.stages.as_deref()?).ok()?;
+        let tolerance = 1e-9 * self.end_time.abs();
+        stages
+            .iter()
+            .find(|(_, end)| self.sim_time < end - tolerance)
+            .or(stages.last())
+            .map(|(name, _)| name.clone())
+    }
+
     /// The API view of this row.
     pub fn view(&self) -> JobView {
         let fraction = if self.status == "succeeded" {
@@ -104,6 +121,7 @@ impl JobRow {
                 fraction,
                 wall_seconds: self.wall_seconds,
                 eta_seconds: eta,
+                stage: self.stage(),
             },
             metrics: self
                 .metrics
