@@ -25,6 +25,38 @@ pub struct EnergyLedger {
 }
 
 impl EnergyLedger {
+    /// The entries in declaration order (for checkpoints).
+    pub fn to_array(&self) -> [f64; 6] {
+        [
+            self.boundaries,
+            self.free_strain,
+            self.damping,
+            self.plastic,
+            self.friction,
+            self.cohesive,
+        ]
+    }
+
+    /// The ledger whose [`EnergyLedger::to_array`] is `a`.
+    pub fn from_array(a: [f64; 6]) -> Self {
+        let [
+            boundaries,
+            free_strain,
+            damping,
+            plastic,
+            friction,
+            cohesive,
+        ] = a;
+        Self {
+            boundaries,
+            free_strain,
+            damping,
+            plastic,
+            friction,
+            cohesive,
+        }
+    }
+
     /// Net energy the ledger explains: work done on the bodies less all dissipation.
     pub fn net_input(&self) -> f64 {
         self.boundaries + self.free_strain - self.dissipated()

@@ -98,15 +98,7 @@ where
             self.physics_dt,
             relax,
         ]);
-        let l = &self.ledger;
-        s.push(&[
-            l.boundaries,
-            l.free_strain,
-            l.damping,
-            l.plastic,
-            l.friction,
-            l.cohesive,
-        ]);
+        s.push(&self.ledger.to_array());
         let k = &self.kinematics;
         s.push(&[k.kinetic_energy]);
         s.push(k.momentum.as_slice());
@@ -156,22 +148,7 @@ where
         self.energy0 = energy0;
         self.physics_dt = physics_dt;
         self.relax_time = (!relax.is_nan()).then_some(relax);
-        let [
-            boundaries,
-            free_strain,
-            damping,
-            plastic,
-            friction,
-            cohesive,
-        ] = s.take_n()?;
-        self.ledger = crate::energy_ledger::EnergyLedger {
-            boundaries,
-            free_strain,
-            damping,
-            plastic,
-            friction,
-            cohesive,
-        };
+        self.ledger = crate::energy_ledger::EnergyLedger::from_array(s.take_n()?);
         self.restore_statistics(&mut s)?;
         self.stress_scratch.restore(c)?;
         if let Some(r) = &mut self.reference {
