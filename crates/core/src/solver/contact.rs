@@ -26,12 +26,11 @@
 //!   the law's friction coefficient.
 
 use super::cohesive::{CohesiveNode, NodeChange, Precrack, advance, bond_impulse};
-use super::parallel::SharedSlice;
+use super::parallel::{SharedSlice, ordered_reduce};
 use crate::boundary::Boundaries;
 use crate::grid::{Grid, node_coords, node_position};
 use crate::math::Vector;
 use crate::scene::{CohesiveLaw, ContactLaw, MAX_CONTACT_FIELDS};
-use rayon::prelude::*;
 
 /// How far below a full support the particle volume at a node may be while the fields
 /// there still count as touching (fraction of `dx^D`). Zero: the surfaces must meet. A
@@ -163,9 +162,10 @@ pub(crate) fn apply_contact<const D: usize>(
     let grids = &*data.grids;
     let (gradient, volume, laws) = (data.gradient, data.volume, data.laws);
     let (cohesive, dt) = (data.cohesive, data.dt);
-    (0..len.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|chunk| {
+    ordered_reduce(
+        len.div_ceil(CHUNK),
+        ContactStats::default,
+        |chunk| {
             let mut stats = ContactStats::default();
             let mut m = [0.0; MAX_CONTACT_FIELDS];
             let mut v = [Vector::<D>::zeros(); MAX_CONTACT_FIELDS];
@@ -284,8 +284,9 @@ pub(crate) fn apply_contact<const D: usize>(
                 }
             }
             stats
-        })
-        .reduce(ContactStats::default, ContactStats::merge)
+        },
+        ContactStats::merge,
+    )
 }
 
 /// Whether Coulomb friction slides (rather than sticks) for a field moving at `v`: only

@@ -1,7 +1,7 @@
 //! G2P: gather grid velocities back to particles (PIC, FLIP/PIC blend or APIC), move them,
 //! and update the deformation gradient from the velocity gradient.
 
-use super::parallel::{SharedSlice, chunk_count, chunk_range};
+use super::parallel::{SharedSlice, chunk_count, chunk_range, ordered_reduce};
 use super::stats::{KinematicStats, ParticleFault};
 use super::stencil::{Stencil, stencil_fits};
 use crate::grid::Grid;
@@ -9,7 +9,6 @@ use crate::kernels::Kernel;
 use crate::math::{Matrix, Vector, determinant, inverse};
 use crate::particles::Particles;
 use crate::scene::Transfer;
-use rayon::prelude::*;
 
 /// What one G2P pass updates.
 #[derive(Clone, Copy, Debug)]
@@ -61,9 +60,10 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
     let gradient_out = SharedSlice::new(velocity_gradient);
     let identity = Matrix::<D>::identity();
 
-    (0..chunk_count(n))
-        .into_par_iter()
-        .map(|chunk| {
+    ordered_reduce(
+        chunk_count(n),
+        KinematicStats::default,
+        |chunk| {
             let range = chunk_range(chunk, n);
             let mut stats = KinematicStats::<D>::default();
             for p in range {
@@ -187,8 +187,9 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
             }
             stats.max_speed = stats.max_speed.sqrt();
             stats
-        })
-        .reduce(KinematicStats::default, KinematicStats::merge)
+        },
+        KinematicStats::merge,
+    )
 }
 
 /// Kinematic statistics of the current particle state without changing it.

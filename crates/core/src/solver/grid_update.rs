@@ -3,11 +3,10 @@
 //! Gravity arrives with the momentum (or the FLIP force) from P2G, so stick walls fold it
 //! like any other force.
 
-use super::parallel::SharedSlice;
+use super::parallel::{SharedSlice, ordered_reduce};
 use crate::boundary::Boundaries;
 use crate::grid::{Grid, node_coords, node_position};
 use crate::math::Vector;
-use rayon::prelude::*;
 
 /// What one grid update applies.
 #[derive(Clone, Copy, Debug)]
@@ -44,17 +43,19 @@ pub fn damped_energy<const D: usize>(grid: &Grid<D>, damping: f64) -> f64 {
         return 0.0;
     }
     let factor = 1.0 / (damping * damping) - 1.0;
-    grid.mass
-        .par_iter()
-        .zip(grid.momentum.par_iter())
-        .map(|(m, v)| {
-            if *m > 0.0 {
-                0.5 * m * v.norm_squared() * factor
-            } else {
-                0.0
-            }
-        })
-        .sum()
+    const CHUNK: usize = 4096;
+    let (mass, velocity) = (&grid.mass, &grid.momentum);
+    ordered_reduce(
+        mass.len().div_ceil(CHUNK),
+        || 0.0,
+        |chunk| {
+            (chunk * CHUNK..((chunk + 1) * CHUNK).min(mass.len()))
+                .filter(|&i| mass[i] > 0.0)
+                .map(|i| 0.5 * mass[i] * velocity[i].norm_squared() * factor)
+                .sum::<f64>()
+        },
+        |a, b| a + b,
+    )
 }
 
 /// Turns nodal momentum into velocity in place and applies forces and boundary conditions.
@@ -77,11 +78,15 @@ pub fn update_grid<const D: usize>(
         ..
     } = &mut *grid;
     let (mass, force) = (&*mass, &*force);
-    let work = momentum
-        .par_chunks_mut(CHUNK)
-        .enumerate()
-        .map(|(chunk, velocities)| {
+    let len = momentum.len();
+    let momentum = SharedSlice::new(momentum);
+    let work = ordered_reduce(
+        len.div_ceil(CHUNK),
+        || (0.0, 0.0),
+        |chunk| {
             let start = chunk * CHUNK;
+            // SAFETY: chunks are disjoint node ranges.
+            let velocities = unsafe { momentum.range(start..(start + CHUNK).min(len)) };
             let (mut work, mut damped) = (0.0, 0.0);
             for (k, v) in velocities.iter_mut().enumerate() {
                 let i = start + k;
@@ -118,8 +123,9 @@ pub fn update_grid<const D: usize>(
                 }
             }
             (work, damped)
-        })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        },
+        |a, b| (a.0 + b.0, a.1 + b.1),
+    );
     boundaries.mirror_stick_walls(grid);
     GridWork {
         boundaries: work.0,

@@ -7,11 +7,18 @@
 use std::ops::Range;
 
 /// A raw pointer to the start of a slice, shareable across threads.
-#[derive(Clone, Copy)]
 pub(crate) struct SharedSlice<T> {
     ptr: *mut T,
     len: usize,
 }
+
+// Copy whatever T is: the wrapper is a pointer and a length (derive would ask T: Copy).
+impl<T> Clone for SharedSlice<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for SharedSlice<T> {}
 
 // SAFETY: the wrapper only hands out access through the unsafe methods below, whose callers
 // guarantee that no two threads touch the same element.
@@ -65,4 +72,46 @@ pub(crate) fn chunk_range(chunk: usize, n: usize) -> Range<usize> {
 /// Number of chunks covering `0..n`.
 pub(crate) fn chunk_count(n: usize) -> usize {
     n.div_ceil(PARTICLE_CHUNK)
+}
+
+/// Reduces `map(0) ⊕ … ⊕ map(count − 1)` in parallel along a merge tree fixed by `count`
+/// alone (halves, down to single items), so floating-point sums come out the same bit for
+/// bit whichever threads ran which part; rayon's own `reduce` merges in the order tasks
+/// finish, which left energy sums differing in their last bit between identical runs.
+pub(crate) fn ordered_reduce<T, M, R>(count: usize, identity: fn() -> T, map: M, merge: R) -> T
+where
+    T: Send,
+    M: Fn(usize) -> T + Sync,
+    R: Fn(T, T) -> T + Sync,
+{
+    fn go<T: Send>(
+        range: Range<usize>,
+        map: &(impl Fn(usize) -> T + Sync),
+        merge: &(impl Fn(T, T) -> T + Sync),
+    ) -> T {
+        if range.len() == 1 {
+            return map(range.start);
+        }
+        let mid = range.start + range.len() / 2;
+        let (a, b) = rayon::join(
+            || go(range.start..mid, map, merge),
+            || go(mid..range.end, map, merge),
+        );
+        merge(a, b)
+    }
+    if count == 0 {
+        return identity();
+    }
+    go(0..count, &map, &merge)
+}
+
+/// The sum of `term(p)` over the particles `0..n`, chunk by chunk in the fixed order of
+/// [`ordered_reduce`].
+pub(crate) fn ordered_particle_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+    ordered_reduce(
+        chunk_count(n),
+        || 0.0,
+        |chunk| chunk_range(chunk, n).map(&term).sum::<f64>(),
+        |a, b| a + b,
+    )
 }

@@ -2,14 +2,13 @@
 //! particles per call, batches in parallel. When a physics creates a free strain (thermal
 //! expansion, shrinkage) the laws see the mechanical part of F only.
 
-use super::parallel::SharedSlice;
+use super::parallel::{SharedSlice, ordered_particle_sum, ordered_reduce};
 use super::stats::ParticleFault;
 use crate::material::{BatchStats, MAX_SHARED_READS, MAX_STATE_FIELDS, StateSlices, StressBatch};
 use crate::math::Matrix;
 use crate::particles::Particles;
 use crate::physics::{FREE_STRAIN, PLASTIC_WORK};
 use crate::solver::DimensionDispatch;
-use rayon::prelude::*;
 
 /// Particles per material call.
 const BATCH: usize = 1024;
@@ -104,21 +103,19 @@ where
         scratch.mechanical.resize(n, Matrix::<D>::identity());
         scratch.applied.resize(n, 0.0);
         scratch.lever.resize(n, 0.0);
-        free_strain_work = scratch
-            .mechanical
-            .par_iter_mut()
-            .zip(scratch.applied.par_iter_mut())
-            .zip(scratch.lever.par_iter_mut())
-            .enumerate()
-            .map(|(p, ((fm, applied), lever))| {
-                let f = &deformation_gradient[p];
-                *fm = f * (1.0 / (1.0 + fs[p]));
-                let trace: f64 = (0..D).map(|d| stress[p][(d, d)]).sum();
-                *lever = (fs[p] - *applied) * crate::math::determinant(f) * volume0[p];
-                *applied = fs[p];
-                -0.5 * trace * *lever
-            })
-            .sum();
+        let mechanical = SharedSlice::new(&mut scratch.mechanical);
+        let applied = SharedSlice::new(&mut scratch.applied);
+        let lever = SharedSlice::new(&mut scratch.lever);
+        free_strain_work = ordered_particle_sum(n, |p| {
+            // SAFETY: the sum visits each particle once, in disjoint chunks.
+            let (fm, applied, lever) = unsafe { (mechanical.get(p), applied.get(p), lever.get(p)) };
+            let f = &deformation_gradient[p];
+            *fm = f * (1.0 / (1.0 + fs[p]));
+            let trace: f64 = (0..D).map(|d| stress[p][(d, d)]).sum();
+            *lever = (fs[p] - *applied) * crate::math::determinant(f) * volume0[p];
+            *applied = fs[p];
+            -0.5 * trace * *lever
+        });
     }
     let kinematic: &[Matrix<D>] = if free_strain.is_some() {
         &scratch.mechanical
@@ -150,9 +147,10 @@ where
         }
         let comps: [usize; MAX_STATE_FIELDS] =
             std::array::from_fn(|k| specs.get(k).map_or(0, |s| s.components));
-        let stats = (0..count.div_ceil(BATCH))
-            .into_par_iter()
-            .map(|b| {
+        let stats = ordered_reduce(
+            count.div_ceil(BATCH),
+            StressStats::default,
+            |b| {
                 let local = b * BATCH..((b + 1) * BATCH).min(count);
                 let global = range.start + local.start..range.start + local.end;
                 // SAFETY: batches are disjoint particle ranges of this group.
@@ -200,30 +198,26 @@ where
                     non_finite,
                     ..StressStats::default()
                 }
-            })
-            .reduce(StressStats::default, |a, b| StressStats {
+            },
+            |a, b| StressStats {
                 batch: a.batch.merge(b.batch),
                 non_finite: ParticleFault::first(a.non_finite, b.non_finite),
                 ..StressStats::default()
-            });
+            },
+        );
         scratch.group_wave_speed[g] = stats.batch.max_wave_speed;
         total.batch = total.batch.merge(stats.batch);
         total.non_finite = ParticleFault::first(total.non_finite, stats.non_finite);
     }
     if free_strain.is_some() {
         // The other half of the trapezoid: the stress after the update.
-        total.free_strain_work += stress
-            .par_iter()
-            .zip(scratch.lever.par_iter())
-            .map(|(s, lever)| -0.5 * (0..D).map(|d| s[(d, d)]).sum::<f64>() * lever)
-            .sum::<f64>();
+        let lever = &scratch.lever;
+        total.free_strain_work += ordered_particle_sum(n, |p| {
+            -0.5 * (0..D).map(|d| stress[p][(d, d)]).sum::<f64>() * lever[p]
+        });
     }
     if has_work {
-        total.plastic_work = plastic_work
-            .par_iter()
-            .zip(volume0.par_iter())
-            .map(|(w, v)| w * v)
-            .sum();
+        total.plastic_work = ordered_particle_sum(n, |p| plastic_work[p] * volume0[p]);
     }
     particles.shared.restore(PLASTIC_WORK, plastic_work);
     total

@@ -8,7 +8,7 @@
 //! the step, so every plugin works unchanged.
 
 use super::super::DimensionDispatch;
-use super::super::parallel::{SharedSlice, chunk_count, chunk_range};
+use super::super::parallel::{SharedSlice, chunk_count, chunk_range, ordered_reduce};
 use super::super::simulation::Simulation;
 use super::super::stress_derivative::stress_derivative;
 use super::super::stress_update::{StressStats, update_stress};
@@ -185,11 +185,13 @@ fn scatter_with<const D: usize>(
 ) -> f64 {
     let threads = work.buffers.len();
     let (interp, entry_dof, volume_n) = (&work.interp, &work.entry_dof, &work.volume_n);
-    let scale2: f64 = work
-        .buffers
-        .par_iter_mut()
-        .enumerate()
-        .map(|(t, buffer)| {
+    let buffers = SharedSlice::new(&mut work.buffers);
+    let scale2: f64 = ordered_reduce(
+        threads,
+        || 0.0,
+        |t| {
+            // SAFETY: each task takes its own buffer.
+            let buffer = unsafe { buffers.get(t) };
             buffer.fill(0.0);
             let per = n.div_ceil(threads);
             let mut scale2 = 0.0;
@@ -211,8 +213,9 @@ fn scatter_with<const D: usize>(
                 }
             }
             scale2
-        })
-        .sum();
+        },
+        |a, b| a + b,
+    );
     out.fill(0.0);
     for buffer in &work.buffers {
         for (o, b) in out.iter_mut().zip(buffer) {
