@@ -30,7 +30,7 @@ pub use solver_settings::{
     AntiLocking, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName, KrylovMethod,
     Mechanics, Scheme, Solver, TangentMethod, Transfer,
 };
-pub use stages::{FIXED_ACROSS_STAGES, StageSpec, ValidatedStage, merge_patch};
+pub use stages::{FIXED_ACROSS_STAGES, RemoveParticles, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{
     CORE_FIELDS, INTERFACE_DAMAGE, ValidatedScene, parse_scene, parse_scene_value,
     parse_scene_value_limited,

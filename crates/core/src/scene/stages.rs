@@ -22,6 +22,24 @@ pub struct StageSpec {
     /// not change `name`, `dimension`, `domain`, `materials`, `bodies` or `contact`.
     #[serde(default)]
     pub changes: serde_json::Value,
+    /// Particles the stage removes as it takes over from the stage before (the gap's
+    /// particles a fill left empty become the voids of the cured underfill).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub remove: Option<RemoveParticles>,
+}
+
+/// A hand-over rule: the particles of `materials` (all when empty) whose particle field
+/// `field`, as the stage before left it, is below `below` leave the run; the rest carry on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RemoveParticles {
+    /// A particle field a physics of the stage before writes (`fill`, say).
+    pub field: String,
+    /// Particles with a value below this are removed.
+    pub below: f64,
+    /// Materials whose particles the rule applies to (empty: every material).
+    #[serde(default)]
+    pub materials: Vec<String>,
 }
 
 /// Top-level keys a stage may not change: the particles and the grid they live on carry
@@ -42,6 +60,8 @@ pub struct ValidatedStage {
     pub name: String,
     /// The scene this stage runs (the base with every change up to this stage applied).
     pub scene: Box<ValidatedScene>,
+    /// Particles the stage removes when it takes over.
+    pub remove: Option<RemoveParticles>,
 }
 
 /// Applies the merge patch `patch` to `target` (RFC 7396).
@@ -144,10 +164,15 @@ pub(super) fn validate_stages(
             continue;
         }
         match parse_scene_value_limited(current.clone(), registry, base_dir, limits) {
-            Ok(scene) => out.push(ValidatedStage {
-                name: stage.name.clone(),
-                scene: Box::new(scene),
-            }),
+            Ok(scene) => {
+                let before = out.last().map(|s: &ValidatedStage| &*s.scene);
+                issues.extend(check_hand_over(&path, stage, &scene, before));
+                out.push(ValidatedStage {
+                    name: stage.name.clone(),
+                    scene: Box::new(scene),
+                    remove: stage.remove.clone(),
+                });
+            }
             Err(e) => issues.extend(e.issues.into_iter().map(|issue| {
                 let top = issue.path.split(['.', '[']).next().unwrap_or("");
                 let path = if changes.contains_key(top) {
@@ -167,6 +192,77 @@ pub(super) fn validate_stages(
     } else {
         Err(issues)
     }
+}
+
+/// What a stage can take over from the stage before (`before`; none for the first): a
+/// removal rule names a field that stage writes and materials the scene has, and no
+/// physics whose state lives outside the particles continues across the hand-over.
+fn check_hand_over(
+    path: &str,
+    stage: &StageSpec,
+    scene: &ValidatedScene,
+    before: Option<&ValidatedScene>,
+) -> Vec<Issue> {
+    let mut issues = Vec::new();
+    if let Some(before) = before {
+        for (name, _) in &scene.physics {
+            let continued = before.physics.iter().find(|(n, _)| n == name);
+            if let Some(what) = continued.and_then(|(_, p)| p.hidden_state()) {
+                issues.push(Issue::new(
+                    format!("{path}.changes.physics.{name}"),
+                    format!(
+                        "physics `{name}` keeps {what} between steps, which a hand-over between \
+                         stages does not carry: end it with the stage before (set it to null \
+                         here) or keep both in one stage"
+                    ),
+                ));
+            }
+        }
+    }
+    let Some(rule) = &stage.remove else {
+        return issues;
+    };
+    let at = format!("{path}.remove");
+    match before {
+        None => issues.push(Issue::new(
+            at.clone(),
+            "the first stage has no stage before it to take particles over from",
+        )),
+        Some(before) => {
+            let written: Vec<&'static str> = before
+                .physics
+                .iter()
+                .flat_map(|(_, p)| p.fields().into_iter().map(|f| f.name))
+                .collect();
+            if !written.contains(&rule.field.as_str()) {
+                issues.push(Issue::new(
+                    format!("{at}.field"),
+                    format!(
+                        "no physics of the stage before writes a particle field `{}` (it writes: \
+                         {})",
+                        rule.field,
+                        if written.is_empty() {
+                            "none".to_string()
+                        } else {
+                            written.join(", ")
+                        }
+                    ),
+                ));
+            }
+        }
+    }
+    if !rule.below.is_finite() {
+        issues.push(Issue::new(format!("{at}.below"), "must be a finite number"));
+    }
+    for (i, m) in rule.materials.iter().enumerate() {
+        if !scene.scene.materials.contains_key(m) {
+            issues.push(Issue::new(
+                format!("{at}.materials[{i}]"),
+                format!("no material `{m}` in the scene's `materials`"),
+            ));
+        }
+    }
+    issues
 }
 
 #[cfg(test)]

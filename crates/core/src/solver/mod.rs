@@ -22,6 +22,7 @@ mod contact_step;
 mod explicit;
 mod grid_to_particle;
 pub mod grid_update;
+mod hand_over;
 mod implicit;
 mod incompressible;
 mod interpolation;

@@ -4,6 +4,7 @@
 //! The hand-over goes through the same [`Checkpoint`] a resume uses, so a stage may even
 //! change the kernel (the dimension and kernel are types: each stage is dispatched anew).
 
+use super::hand_over;
 use super::simulation::Simulation;
 use super::{DimensionDispatch, RunError, RunObserver, SimulationVisitor, dispatch};
 use crate::checkpoint::Checkpoint;
@@ -44,6 +45,12 @@ pub(super) fn run_stages(
         Some(c) => resumed_stage(c, scene.stages.len())?,
     };
     let mut handed_over: Option<Checkpoint> = resume.cloned();
+    // Particles removed at hand-overs so far (original indices, sorted); a checkpoint of a
+    // staged run keeps them in its stage tag.
+    let mut removed: Vec<u32> = match resume {
+        Some(c) => serde_json::from_value(c.state("stage")["removed"].clone()).unwrap_or_default(),
+        None => Vec::new(),
+    };
     let mut last = Metrics::default();
     let mut steps_before = summaries
         .iter()
@@ -62,18 +69,33 @@ pub(super) fn run_stages(
                 .and_then(|c| c.state("time").as_f64())
                 .unwrap_or(0.0),
         };
+        let resumed_here = resume.is_some() && index == first;
+        if let (Some(rule), Some(c), false) = (&stage.remove, &handed_over, resumed_here) {
+            let path = format!("stages[{index}].remove");
+            let after = hand_over::apply_rule(c, rule, &removed, scene, &path)?;
+            handed_over = Some(hand_over::remove_rows(c, scene, &removed, &after)?);
+            removed = after;
+        }
         let tag = serde_json::json!({
             "index": index,
             "start_time": start_time,
             "summaries": summaries,
+            "removed": removed,
         });
+        let filtered;
+        let stage_scene = if removed.is_empty() {
+            &*stage.scene
+        } else {
+            filtered = hand_over::without_particles(&stage.scene, &removed);
+            &filtered
+        };
         let (metrics, end) = dispatch(
-            &stage.scene,
+            stage_scene,
             Stage {
                 sink: &mut *sink,
                 observer: &mut *observer,
                 handed_over: handed_over.as_ref(),
-                resume: resume.is_some() && index == first,
+                resume: resumed_here,
                 tag,
             },
         )?;
