@@ -81,6 +81,19 @@ pub struct StageSummary {
     pub error: Option<f64>,
     /// Its energy error (see `Metrics::energy_drift`).
     pub energy_drift: f64,
+    /// Particles it ran with.
+    #[serde(default)]
+    pub particles: usize,
+    /// Particles its `remove` rule took out when it took over (the voids a fill left).
+    #[serde(default)]
+    pub removed_particles: usize,
+    /// Its physics operators' report (`underfill.fill_time`, solver counts, ...).
+    #[serde(default)]
+    pub physics: std::collections::BTreeMap<String, f64>,
+    /// Largest von Mises stress of each material's particles at the stage's end, Pa (in
+    /// 2D from the stored in-plane stress with σ_zz = 0).
+    #[serde(default)]
+    pub peak_von_mises: std::collections::BTreeMap<String, f64>,
 }
 
 /// One output frame. `values[i]` holds field `i` for every particle in output order,

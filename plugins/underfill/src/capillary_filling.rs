@@ -16,7 +16,7 @@ use std::sync::Arc;
 /// gap volume)` from the shared particle field `fill` of the particles in the gap; error:
 /// relative L2 error of the front over the output frames after t = 0. The comparison
 /// `fill_time` appears once the front reached the end.
-#[derive(Clone, Copy, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CapillaryFillingParams {
     /// Axis along the gap (the flow direction).
@@ -33,6 +33,10 @@ pub struct CapillaryFillingParams {
     pub contact_angle: f64,
     /// Dynamic viscosity of the liquid, Pa s.
     pub viscosity: f64,
+    /// Materials whose particles make up the gap (empty: every particle), when the scene
+    /// has other bodies too (the die and substrate of a package's cross-section).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<String>,
 }
 
 /// The front error accumulated over frames, and the front history until the gap filled.
@@ -58,11 +62,16 @@ impl ReferenceLaw for CapillaryFilling {
         let Some(fill) = particles.shared.get("fill") else {
             return;
         };
-        let p = self.p;
+        let p = self.p.clone();
         let (mut liquid, mut total) = (0.0, 0.0);
-        for (f, v) in fill.iter().zip(&particles.volume0) {
-            liquid += f * v;
-            total += v;
+        for group in &particles.groups {
+            if !p.materials.is_empty() && !p.materials.contains(&group.name) {
+                continue;
+            }
+            for k in group.range.clone() {
+                liquid += fill[k] * particles.volume0[k];
+                total += particles.volume0[k];
+            }
         }
         let front = p.length * liquid / total.max(1e-300);
         let t_fill = capillary_fill_time(
@@ -149,9 +158,17 @@ impl CapillaryFilling {
 }
 
 /// The problems of a `capillary_filling` section in a `dimension`-D scene.
-fn check(p: &CapillaryFillingParams, path: &str, dimension: usize) -> Result<(), Vec<Issue>> {
+fn check(p: &CapillaryFillingParams, path: &str, scene: &Scene) -> Result<(), Vec<Issue>> {
     let mut c = Checks::new(path);
-    c.axis("axis", p.axis, dimension);
+    c.axis("axis", p.axis, scene.dimension as usize);
+    for (i, m) in p.materials.iter().enumerate() {
+        if !scene.materials.contains_key(m) {
+            c.error(
+                &format!("materials[{i}]"),
+                format!("no material `{m}` in the scene's `materials`"),
+            );
+        }
+    }
     c.finite("entrance", p.entrance);
     c.positive("length", p.length);
     c.positive("gap", p.gap);
@@ -174,7 +191,7 @@ fn build(
     path: &str,
     scene: &Scene,
 ) -> Result<Arc<dyn Reference>, Vec<Issue>> {
-    check(&p, path, scene.dimension as usize)?;
+    check(&p, path, scene)?;
     Ok(Arc::new(CapillaryFilling {
         p,
         error: RelativeL2::default(),
@@ -289,8 +306,9 @@ mod tests {
             surface_tension: 0.03,
             contact_angle: f64::NAN,
             viscosity: 2.0,
+            materials: Vec::new(),
         };
-        let found = check(&typed, "reference", 2).unwrap_err();
+        let found = check(&typed, "reference", &test_scene(2)).unwrap_err();
         let paths: Vec<&str> = found.iter().map(|i| i.path.as_str()).collect();
         assert_eq!(
             paths,

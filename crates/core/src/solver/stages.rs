@@ -12,6 +12,7 @@ use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{Metrics, Outcome, OutputSink, StageInfo, StageSummary};
 use crate::scene::ValidatedScene;
+use std::collections::BTreeMap;
 
 /// Runs every stage of `scene` in order into `sink` (from `resume`, a checkpoint written
 /// in one of its stages, when given); stops after a stage that did not finish. Returns the
@@ -31,13 +32,15 @@ pub(super) fn run_stages(
         tag: serde_json::Value,
     }
     impl SimulationVisitor for Stage<'_> {
-        type Output = Result<(Metrics, Checkpoint), RunError>;
+        type Output = Result<(Metrics, Checkpoint, BTreeMap<String, f64>), RunError>;
         fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
         where
             dyn Material: DimensionDispatch<D>,
         {
             sim.stage_tag = self.tag;
-            sim.run_stage(self.sink, self.observer, self.handed_over, self.resume)
+            let (metrics, end) =
+                sim.run_stage(self.sink, self.observer, self.handed_over, self.resume)?;
+            Ok((metrics, end, sim.particles.peak_von_mises()))
         }
     }
     let (first, mut summaries) = match resume {
@@ -70,17 +73,25 @@ pub(super) fn run_stages(
                 .unwrap_or(0.0),
         };
         let resumed_here = resume.is_some() && index == first;
+        let removed_before = removed.len();
         if let (Some(rule), Some(c), false) = (&stage.remove, &handed_over, resumed_here) {
             let path = format!("stages[{index}].remove");
             let after = hand_over::apply_rule(c, rule, &removed, scene, &path)?;
             handed_over = Some(hand_over::remove_rows(c, scene, &removed, &after)?);
             removed = after;
         }
+        let removed_here = match (resumed_here, resume) {
+            (true, Some(c)) => c.state("stage")["removed_at_hand_over"]
+                .as_u64()
+                .unwrap_or(0) as usize,
+            _ => removed.len() - removed_before,
+        };
         let tag = serde_json::json!({
             "index": index,
             "start_time": start_time,
             "summaries": summaries,
             "removed": removed,
+            "removed_at_hand_over": removed_here,
         });
         let filtered;
         let stage_scene = if removed.is_empty() {
@@ -89,7 +100,7 @@ pub(super) fn run_stages(
             filtered = hand_over::without_particles(&stage.scene, &removed);
             &filtered
         };
-        let (metrics, end) = dispatch(
+        let (metrics, end, peak_von_mises) = dispatch(
             stage_scene,
             Stage {
                 sink: &mut *sink,
@@ -108,6 +119,10 @@ pub(super) fn run_stages(
             wall_seconds: metrics.wall_seconds,
             error: metrics.error,
             energy_drift: metrics.energy_drift,
+            particles: metrics.particles,
+            removed_particles: removed_here,
+            physics: metrics.physics.clone(),
+            peak_von_mises,
         });
         steps_before = metrics.steps;
         let finished = metrics.outcome == Some(Outcome::Finished);
