@@ -261,7 +261,7 @@ function showJobHead(job) {
 async function showFrame(id, signal) {
   const field = $("frame-field").value || "x";
   const frame = $("frame-index").value;
-  $("frame-label").textContent = `${frame} of ${$("frame-index").max}`;
+  $("frame-label").textContent = `${frame} of 0–${$("frame-index").max}`;
   const response = await fetch(
     `/v1/jobs/${encodeURIComponent(id)}/frames/${frame}?field=${encodeURIComponent(field)}`,
     { headers: headers(), signal },
@@ -300,7 +300,7 @@ function setUpFrames(id, job, scene, signal) {
     const draw = () => showFrame(id, signal).catch(() => {});
     select.onchange = draw;
     slider.onchange = draw;
-    slider.oninput = () => ($("frame-label").textContent = `${slider.value} of ${slider.max}`);
+    slider.oninput = () => ($("frame-label").textContent = `${slider.value} of 0–${slider.max}`);
     draw();
   }
 }
@@ -324,7 +324,8 @@ async function showStudy(job, signal) {
   const span = (v) => {
     let lo = Math.min(...v), hi = Math.max(...v);
     if (hi - lo < 0.2) { lo -= 0.1; hi += 0.1; }
-    return [lo, hi];
+    const pad = 0.05 * (hi - lo); // keeps the end points' rings inside the axes
+    return [lo - pad, hi + pad];
   };
   const [t0, t1] = span(lt), [e0, e1] = span(le);
   const X = (t) => L + ((Math.log10(t) - t0) / (t1 - t0)) * (W - L - R);
