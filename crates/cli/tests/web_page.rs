@@ -388,6 +388,33 @@ fn the_page_submits_a_scene_follows_it_and_shows_its_picture() {
         "the last frame again",
     );
     screenshot(&mut page, "web-job.png");
+
+    // A longer job's page follows its progress live (the events stream; the page does not
+    // poll), and its cancel button stops it.
+    let mut long = base.clone();
+    long["solver"]["end_time"] = json!(20.0);
+    long["output"]["frames"] = json!(2);
+    let long = submit(&url, ALICE, &long);
+    page.eval(&format!("location.hash = '#/jobs/{long}'; true"));
+    page.wait_for(
+        "document.getElementById('job-status').textContent === 'running' &&
+         document.getElementById('job-progress').value > 0",
+        60,
+        "live progress of the running job",
+    );
+    let before = page.eval("document.getElementById('job-progress').value");
+    page.wait_for(
+        &format!("document.getElementById('job-progress').value > {before}"),
+        30,
+        "the progress bar to move",
+    );
+    page.eval("document.getElementById('job-cancel').click(); true");
+    page.wait_for(
+        "document.getElementById('job-status').textContent === 'cancelled'",
+        30,
+        "the job cancelled from its page",
+    );
+    assert_eq!(wait_final(&url, ALICE, &long)["status"], "cancelled");
     println!("browser test: {:.1} s", start.elapsed().as_secs_f64());
 }
 
