@@ -256,6 +256,15 @@ fn the_page_submits_a_scene_follows_it_and_shows_its_picture() {
         30,
         "the page asking for a token",
     );
+    // Any script error or content-security-policy violation from here on fails the test
+    // (the page changes views by its URL's hash, so this window stays).
+    page.eval(
+        "window.__problems = [];
+         window.addEventListener('error', e => __problems.push('error: ' + e.message));
+         window.addEventListener('unhandledrejection', e => __problems.push('rejection: ' + e.reason));
+         document.addEventListener('securitypolicyviolation',
+           e => __problems.push('csp: ' + e.violatedDirective + ' ' + e.blockedURI)); true",
+    );
     page.eval(&format!(
         "document.getElementById('token').value = '{ALICE}';
          document.getElementById('token-form').requestSubmit(); true"
@@ -291,6 +300,17 @@ fn the_page_submits_a_scene_follows_it_and_shows_its_picture() {
     assert!(
         page.eval("document.querySelector('.problem-path').textContent")
             == "materials.bar.poisson_ratio"
+    );
+
+    // Text that is not JSON: a problem at `$`.
+    page.eval(
+        "document.getElementById('scene-text').value = '{\"name\": ';
+         document.getElementById('submit-form').requestSubmit(); true",
+    );
+    page.wait_for(
+        "document.querySelector('.problem-path')?.textContent === '$'",
+        30,
+        "the problem of text that is not JSON at `$`",
     );
 
     // A valid scene uploaded as a file, then submitted: the page moves to the new job.
@@ -415,6 +435,12 @@ fn the_page_submits_a_scene_follows_it_and_shows_its_picture() {
         "the job cancelled from its page",
     );
     assert_eq!(wait_final(&url, ALICE, &long)["status"], "cancelled");
+    let problems = page.eval("window.__problems");
+    assert_eq!(
+        problems,
+        json!([]),
+        "the page's script errors or policy violations"
+    );
     println!("browser test: {:.1} s", start.elapsed().as_secs_f64());
 }
 

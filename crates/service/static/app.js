@@ -411,8 +411,11 @@ function showSubmitErrors(body, status) {
   const err = (body && body.error) || { message: `HTTP ${status}` };
   $("submit-message").textContent = err.message;
   const list = $("submit-problems");
+  // Text that is not JSON at all is a problem of the whole document, `$`.
+  const problems = err.problems && err.problems.length ? err.problems
+    : err.code === "bad_json" ? [{ path: "$", message: err.message }] : [];
   list.replaceChildren(
-    ...(err.problems || []).map((p) => {
+    ...problems.map((p) => {
       const li = document.createElement("li");
       const code = document.createElement("code");
       code.className = "problem-path";
