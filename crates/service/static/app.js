@@ -143,7 +143,11 @@ let followed = new Map();
 const MAX_STREAMS = 3; // browsers allow six connections per host; keep some for the rest
 
 async function refreshJobs(signal) {
-  const r = await api("/v1/jobs?limit=200", { signal });
+  // The API lists in submission order: the newest 200 are the last page.
+  let r = await api("/v1/jobs?limit=200", { signal });
+  if (r.ok && r.body && r.body.total > 200) {
+    r = await api(`/v1/jobs?limit=200&offset=${r.body.total - 200}`, { signal });
+  }
   if (!r.ok || !r.body) return;
   const tbody = $("jobs").querySelector("tbody");
   const jobs = r.body.jobs.slice().reverse(); // newest first
