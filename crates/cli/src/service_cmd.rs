@@ -185,6 +185,7 @@ pub fn serve(args: ServeArgs, registry: Arc<Registry>) -> anyhow::Result<ExitSta
         validation_timeout: std::time::Duration::try_from_secs_f64(args.validation_seconds)
             .context("--validation-seconds must be a number of seconds >= 0")?,
         max_validations: args.max_validations.unwrap_or(defaults.max_validations),
+        frame_renderer: Some(Arc::new(crate::render::ServiceRenderer)),
         ..base_config(&args.queue)?
     };
     runtime()?.block_on(mpm_service::serve(config, registry, stop_signal()))?;

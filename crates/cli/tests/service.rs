@@ -549,7 +549,8 @@ fn the_server_and_openapi_yaml_agree() {
     for (method, path, codes) in &ops {
         let concrete = path
             .replace("{id}", &id)
-            .replace("{path}", "time/zarr.json");
+            .replace("{path}", "time/zarr.json")
+            .replace("{frame}", "-1");
         let url = format!("{}{}", server.url, concrete);
         let response = match method.as_str() {
             "get" => c.get(&url).send().unwrap(),
@@ -567,6 +568,7 @@ fn the_server_and_openapi_yaml_agree() {
             server.url,
             path.replace("{id}", "00000000-0000-0000-0000-000000000000")
                 .replace("{path}", "zarr.json")
+                .replace("{frame}", "0")
         );
         if path.contains("{id}") && method == "get" {
             assert_eq!(

@@ -363,6 +363,17 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
     let local = run(&load(&path, &[]));
     assert_eq!(job["metrics"]["error"].as_f64(), local.error);
 
+    // The API over PostgreSQL serves a job's scene, and its frame pictures from the shared
+    // store.
+    let scene = get_json(&format!("{url}/v1/jobs/{long_id}/scene"));
+    assert_eq!(scene["name"], long["name"]);
+    let picture = client()
+        .get(format!("{url}/v1/jobs/{long_id}/frames/-1.png"))
+        .send()
+        .unwrap();
+    assert_eq!(picture.status(), 200);
+    assert!(picture.bytes().unwrap().starts_with(b"\x89PNG\r\n\x1a\n"));
+
     // The surviving worker logged the requeueing, naming the worker that lost the job.
     let logs: String = (1..=2)
         .map(|n| std::fs::read_to_string(dir.path().join(format!("worker{n}.log"))).unwrap())

@@ -9,6 +9,7 @@ mod api;
 mod child;
 mod db;
 mod error;
+mod frames;
 mod metrics;
 mod resume;
 mod users;
@@ -17,6 +18,7 @@ mod worker;
 pub use api::ROUTES;
 pub use child::{JobCommand, default_job_memory, run_job_process};
 pub use error::ServiceError;
+pub use frames::{FrameError, FrameRenderer, FrameRequest};
 pub use mpm_core::scene::Limits;
 pub use users::{User, Users, UsersError, token_hash};
 
@@ -73,6 +75,9 @@ pub struct Config {
     /// Runs each job in a process of its own (see [`JobCommand`]); `None` runs jobs on a
     /// thread of the service, where an abort or exhausted memory ends the service too.
     pub job_command: Option<JobCommand>,
+    /// Draws the frame pictures of `GET /v1/jobs/{id}/frames/{frame}`; `None`: that route
+    /// answers 501.
+    pub frame_renderer: Option<Arc<dyn FrameRenderer>>,
 }
 
 impl Default for Config {
@@ -97,6 +102,7 @@ impl Default for Config {
             validation_timeout: std::time::Duration::from_secs(10),
             max_validations: std::thread::available_parallelism().map_or(2, |n| n.get()),
             job_command: None,
+            frame_renderer: None,
         }
     }
 }
@@ -130,6 +136,8 @@ pub(crate) struct State {
     pub validations: Arc<tokio::sync::Semaphore>,
     /// This process's counters for `/metrics`.
     pub metrics: metrics::Metrics,
+    /// Permits for frame pictures drawn at once.
+    pub renders: Arc<tokio::sync::Semaphore>,
 }
 
 /// Creates the folders, opens the database and builds the shared state.
@@ -142,6 +150,7 @@ async fn start(config: Config, registry: Arc<Registry>) -> Result<Arc<State>, Se
     let db = db::Db::open(&config.database_url()).await?;
     Ok(Arc::new(State {
         validations: Arc::new(tokio::sync::Semaphore::new(config.max_validations.max(1))),
+        renders: Arc::new(tokio::sync::Semaphore::new(config.max_validations.max(1))),
         config,
         registry,
         db,

@@ -6,9 +6,11 @@ mod colour;
 mod draw;
 mod geometry;
 mod labels;
+mod service;
 mod voids;
 
 pub(crate) use labels::short;
+pub use service::ServiceRenderer;
 
 use crate::exit_status::input_error;
 use anyhow::{Context, bail};

@@ -2,6 +2,8 @@
 //! step through [`ROUTES`]).
 
 mod access;
+mod frames;
+mod page;
 mod submit;
 
 use access::{Caller, authorize, forbidden, log_request, metrics};
@@ -34,6 +36,8 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/v1/jobs/{id}"),
     ("delete", "/v1/jobs/{id}"),
     ("get", "/v1/jobs/{id}/events"),
+    ("get", "/v1/jobs/{id}/scene"),
+    ("get", "/v1/jobs/{id}/frames/{frame}"),
     ("get", "/v1/jobs/{id}/files"),
     ("get", "/v1/jobs/{id}/results"),
     ("get", "/v1/jobs/{id}/results/{path}"),
@@ -41,21 +45,25 @@ pub const ROUTES: &[(&str, &str)] = &[
 
 type Shared = Arc<State>;
 
-/// Builds the router.
+/// Builds the router: the API behind the token check, the page without it.
 pub fn router(state: Shared, stop: watch::Receiver<bool>) -> Router {
     let limit = state.config.max_body_bytes;
-    Router::new()
+    let api = Router::new()
         .route("/v1/health", get(health))
         .route("/metrics", get(metrics))
         .route("/v1/plugins", get(plugins))
         .route("/v1/jobs", get(list_jobs).post(submit))
         .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
         .route("/v1/jobs/{id}/events", get(events))
+        .route("/v1/jobs/{id}/scene", get(frames::scene))
+        .route("/v1/jobs/{id}/frames/{frame}", get(frames::frame_png))
         .route("/v1/jobs/{id}/files", get(files))
         .route("/v1/jobs/{id}/results", get(results_root))
         .route("/v1/jobs/{id}/results/{*path}", get(results))
         .fallback(|| async { ApiError::not_found("no such route") })
-        .layer(middleware::from_fn_with_state(state.clone(), authorize))
+        .layer(middleware::from_fn_with_state(state.clone(), authorize));
+    page::routes()
+        .merge(api)
         .layer(middleware::from_fn_with_state(state.clone(), log_request))
         .layer(DefaultBodyLimit::max(limit))
         .layer(Extension(stop))
@@ -131,7 +139,11 @@ fn job_id(raw: &str) -> Result<String, ApiError> {
 
 /// The job `raw` if the caller may see it; another user's job is as unknown as a missing
 /// one (404), so ids say nothing about other users.
-async fn find(state: &State, raw: &str, caller: &Caller) -> Result<db::JobRow, ApiError> {
+pub(super) async fn find(
+    state: &State,
+    raw: &str,
+    caller: &Caller,
+) -> Result<db::JobRow, ApiError> {
     let id = job_id(raw)?;
     state
         .db

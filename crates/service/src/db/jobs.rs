@@ -117,6 +117,17 @@ impl Db {
         }))
     }
 
+    /// The scene (JSON text) of job `id`.
+    pub async fn scene(&self, id: &str) -> Result<Option<String>, sqlx::Error> {
+        let text = "SELECT scene FROM jobs WHERE id = ?1";
+        Ok(on_backend!(self, pool, sql = text, {
+            sqlx::query_scalar::<_, String>(&sql)
+                .bind(id)
+                .fetch_optional(pool)
+                .await?
+        }))
+    }
+
     /// A page of jobs in submission order, optionally of one status and one owner; and the
     /// total count.
     pub async fn list(
