@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{example, mpm, text};
+use common::{copy_dir, example, mpm, text};
 use mpm_io::ResultStore;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -76,19 +76,6 @@ fn assert_same_frames(sa: &ResultStore, sb: &ResultStore) {
 
 fn bits(values: &[f64]) -> Vec<u64> {
     values.iter().map(|v| v.to_bits()).collect()
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.path().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
 }
 
 /// The store's latest checkpoint attribute, if any (read from the file, as a watcher would).

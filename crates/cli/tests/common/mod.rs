@@ -205,3 +205,17 @@ pub fn incline_scene(angle: f64, law: serde_json::Value, fields: &[&str]) -> ser
         "output": {"frames": 50, "fields": fields}
     })
 }
+
+/// Copies the folder `from` (a result store, say) to `to`, recursively.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.path().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
