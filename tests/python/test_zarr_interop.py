@@ -121,3 +121,30 @@ def test_a_staged_store_opens_stage_by_stage(tmp_path):
     assert np.array_equal(second["particles/x"][0], g["stages/0-first/particles/x"][-1])
     tree = xr.open_datatree(str(store), engine="zarr", consolidated=False)
     assert tree["stages"]["0-first"]["particles"]["x"].shape == (5, 320, 2)
+
+
+def test_the_fill_to_cure_chain_opens_with_its_tables_and_fewer_particles(tmp_path):
+    # The process chain's fill and a short cure: the fill stage keeps two tables of
+    # different lengths (each table has its own dimension names), and the cure stage has
+    # fewer particles than the fill (the trapped air's particles were removed).
+    scene = json.loads((ROOT / "examples" / "underfill-process-2d.json").read_text())
+    scene["stages"] = scene["stages"][:2]
+    scene["stages"][1]["changes"]["solver"]["end_time"] = 61.6
+    scene["stages"][1]["changes"]["output"]["frames"] = 1
+    path = tmp_path / "chain.json"
+    path.write_text(json.dumps(scene))
+    subprocess.run([MPM, "run", str(path), "--out", str(tmp_path), "-q"], check=True)
+    store = tmp_path / "underfill-process-2d.zarr"
+    tree = xr.open_datatree(str(store), engine="zarr", consolidated=False)
+    fill = tree["stages"]["0-fill"]
+    voids = fill["tables"]["underfill_voids"]
+    history = fill["tables"]["underfill_fill"]
+    assert voids.dims == ("underfill_voids_row", "underfill_voids_column")
+    assert voids.shape[0] >= 1 and history.shape[0] > voids.shape[0]
+    removed = zarr.open_group(str(store), mode="r").attrs["metrics"]["stages"][1][
+        "removed_particles"
+    ]
+    assert removed > 0
+    before = fill["particles"]["x"].shape[1]
+    after = tree["stages"]["1-cure"]["particles"]["x"].shape[1]
+    assert after == before - removed

@@ -390,7 +390,9 @@ impl ZarrSink {
             attrs.insert("columns".into(), table.columns.clone().into());
             let array = ArrayBuilder::new(shape.clone(), chunk, data_type::float64(), f64::NAN)
                 .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
-                .dimension_names(Some(["row", "column"]))
+                // Dimensions named per table: tables of different lengths share a group,
+                // and xarray (a DataTree) needs each length under its own name.
+                .dimension_names(Some([format!("{name}_row"), format!("{name}_column")]))
                 .attributes(attrs)
                 .build(store.clone(), &format!("{prefix}/tables/{name}"))
                 .map_err(|e| zerr(path, e))?;
