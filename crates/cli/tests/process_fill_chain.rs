@@ -4,23 +4,13 @@
 
 mod common;
 
-use common::{example, mpm, text, write_scene};
+use common::{example, run_scene_json};
 use mpm_io::ResultStore;
 use serde_json::{Value, json};
 
 fn process_scene() -> Value {
     serde_json::from_str(&std::fs::read_to_string(example("underfill-process-2d.json")).unwrap())
         .unwrap()
-}
-
-fn run(dir: &std::path::Path, name: &str, scene: &Value) -> Value {
-    let path = write_scene(dir, &format!("{name}.json"), scene);
-    let out = mpm(
-        &["run", path.to_str().unwrap(), "--out", name, "-q", "--json"],
-        dir,
-    );
-    assert!(out.status.success(), "{}", text(&out));
-    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 /// Index of a material in the `material` output field (the scene's materials in name
@@ -36,7 +26,7 @@ fn the_fill_hands_its_liquid_and_its_void_to_the_cure() {
     stages[1]["changes"]["solver"]["end_time"] = json!(300.0);
     stages[1]["changes"]["output"]["frames"] = json!(2);
     s["stages"] = Value::Array(stages);
-    let metrics = run(dir.path(), "chain", &s);
+    let metrics = run_scene_json(dir.path(), "chain", &s);
     let fill = &metrics["stages"][0];
     let cure = &metrics["stages"][1];
     assert_eq!(fill["outcome"], "finished");
@@ -139,7 +129,7 @@ fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
         "surface_tension": 0.03, "contact_angle": 30.0, "viscosity": 0.3,
         "materials": ["underfill"]
     });
-    let metrics = run(dir.path(), "plain", &s);
+    let metrics = run_scene_json(dir.path(), "plain", &s);
     let error = metrics["error"].as_f64().unwrap();
     assert!(error < 0.03, "front error {error}");
     let fill_time = metrics["comparisons"]

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{copy_dir, mpm, text, write_scene};
+use common::{copy_dir, mpm, run_scene_json, text, write_scene};
 use mpm_io::ResultStore;
 use serde_json::{Value, json};
 
@@ -46,24 +46,14 @@ fn blocks(cold: bool) -> Value {
     })
 }
 
-fn run(dir: &std::path::Path, file: &str, scene: &Value) -> Value {
-    let path = write_scene(dir, &format!("{file}.json"), scene);
-    let out = mpm(
-        &["run", path.to_str().unwrap(), "--out", file, "-q", "--json"],
-        dir,
-    );
-    assert!(out.status.success(), "{}", text(&out));
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 #[test]
 fn removed_particles_leave_the_run_as_if_never_there() {
     let dir = tempfile::tempdir().unwrap();
     let mut with_rule = blocks(true);
     with_rule["stages"][1]["remove"] =
         json!({"field": "temperature", "below": 275.0, "materials": ["cold"]});
-    let removed = run(dir.path(), "removed", &with_rule);
-    let never = run(dir.path(), "never", &blocks(false));
+    let removed = run_scene_json(dir.path(), "removed", &with_rule);
+    let never = run_scene_json(dir.path(), "never", &blocks(false));
     let per_block = never["particles"].as_u64().unwrap() / 2;
     assert_eq!(removed["particles"], never["particles"]);
     assert_eq!(removed["stages"][1]["name"], "fall");
@@ -165,7 +155,7 @@ fn a_run_resumed_after_a_removal_continues_bit_for_bit() {
     let mut s = blocks(true);
     s["stages"][1]["remove"] = json!({"field": "temperature", "below": 275.0});
     s["output"]["checkpoint"] = json!({"steps": 40});
-    let whole = run(dir.path(), "whole", &s);
+    let whole = run_scene_json(dir.path(), "whole", &s);
     let store = dir.path().join("whole/blocks.zarr");
     let copy = dir.path().join("copy.zarr");
     copy_dir(&store, &copy);

@@ -219,3 +219,15 @@ pub fn copy_dir(from: &Path, to: &Path) {
         }
     }
 }
+
+/// Writes `scene` to `dir/<name>.json`, runs it with `mpm run --json` into `dir/<name>/`
+/// and returns its metrics (failing the test if the run fails).
+pub fn run_scene_json(dir: &Path, name: &str, scene: &serde_json::Value) -> serde_json::Value {
+    let path = write_scene(dir, &format!("{name}.json"), scene);
+    let out = mpm(
+        &["run", path.to_str().unwrap(), "--out", name, "-q", "--json"],
+        dir,
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
