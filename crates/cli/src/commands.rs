@@ -151,6 +151,10 @@ pub enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Run the built-in benchmark scenes (cube drop, Johnson–Cook impact, thermal) at a few
+    /// grid sizes for a fixed number of steps; print particle-steps per second, bytes per
+    /// particle and grid bytes (a table, or JSON). The global --threads sets the pool size.
+    Bench(crate::bench::BenchArgs),
     /// Reduced-order models: train on full runs, run, measure the error, sweep.
     Rom {
         /// What to do.
@@ -333,6 +337,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             })
         }
         Command::Rom { command } => crate::rom::run(command, &registry),
+        Command::Bench(args) => crate::bench::run(args, &registry),
         Command::RunJob(args) => Ok(crate::job::run(&args, &registry)),
         Command::Export { store, vtk, stage } => {
             let pvd = mpm_io::export_vtk(&store, &vtk, stage.as_deref())?;

@@ -1,6 +1,7 @@
 //! The `mpm` command as a library: the binary is `main_with(default_registry())`, and a
 //! plugin author builds their own `mpm` with one more line (see the plugin template).
 
+pub mod bench;
 mod client;
 mod commands;
 mod exit_status;

@@ -1,0 +1,65 @@
+//! `mpm bench`: the three built-in scenes at the smallest size run their steps and print
+//! valid JSON with positive figures and the particle counts of the scenes; bad arguments
+//! exit 2 naming the argument.
+
+use std::process::{Command, Output};
+
+fn mpm(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mpm"))
+        .args(args)
+        .env_remove("MPM_THREADS")
+        .output()
+        .expect("mpm starts")
+}
+
+#[test]
+fn bench_runs_every_scene_and_prints_json() {
+    let out = mpm(&["bench", "--size", "16", "--steps", "5", "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert!(doc["machine"]["cores"].as_u64().unwrap() >= 1);
+    assert!(doc["machine"]["threads"].as_u64().unwrap() >= 1);
+    assert_eq!(doc["steps"], 5);
+    let cases = doc["cases"].as_array().unwrap();
+    let names: Vec<&str> = cases.iter().map(|c| c["scene"].as_str().unwrap()).collect();
+    assert_eq!(names, ["cube-drop", "impact", "thermal"]);
+    for c in cases {
+        assert_eq!(c["cells"], 16, "{c}");
+        assert_eq!(c["steps"], 5, "{c}");
+        assert_eq!(c["outcome"], "finished", "{c}");
+        for key in [
+            "particles",
+            "wall_seconds",
+            "particle_steps_per_second",
+            "bytes_per_particle",
+            "grid_bytes",
+        ] {
+            assert!(c[key].as_f64().unwrap() > 0.0, "{key} of {c}");
+        }
+    }
+    // The cube holds ⌊0.8 n⌋ = 12 particles along each axis; the thermal bar fills
+    // 16 × 4 × 4 cells at 2 particles per cell along each axis.
+    assert_eq!(cases[0]["particles"], 12 * 12 * 12);
+    assert_eq!(cases[2]["particles"], 32 * 8 * 8);
+    // A quarter cylinder of radius 0.3 L and length 0.7 L at 32 particles per L: about
+    // π/4 · 9.6² · 22.4 = 1,621 particles.
+    let impact = cases[1]["particles"].as_f64().unwrap();
+    assert!((1400.0..1900.0).contains(&impact), "{impact}");
+}
+
+#[test]
+fn bad_arguments_exit_2_naming_the_argument() {
+    for (args, named) in [
+        (&["bench", "--size", "0"][..], "--size"),
+        (&["bench", "--size", "32,x"][..], "--size"),
+        (&["bench", "--scene", "nope"][..], "--scene"),
+        (&["bench", "--steps", "0"][..], "--steps"),
+    ] {
+        let out = mpm(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(named), "{args:?}: {stderr}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+    }
+}
