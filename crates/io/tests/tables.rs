@@ -80,7 +80,7 @@ fn tables_round_trip_through_the_store() {
     assert_eq!(meta["shape"], serde_json::json!([2, 3]));
     assert_eq!(
         meta["dimension_names"],
-        serde_json::json!(["row", "column"])
+        serde_json::json!(["voids_row", "voids_column"])
     );
     assert_eq!(meta["data_type"], "float64");
     let meta: serde_json::Value = serde_json::from_str(
