@@ -64,13 +64,17 @@ impl ReferenceLaw for CapillaryFilling {
         };
         let p = self.p.clone();
         let (mut liquid, mut total) = (0.0, 0.0);
-        for group in &particles.groups {
-            if !p.materials.is_empty() && !p.materials.contains(&group.name) {
-                continue;
-            }
-            for k in group.range.clone() {
-                liquid += fill[k] * particles.volume0[k];
-                total += particles.volume0[k];
+        let mut add = |k: usize| {
+            liquid += fill[k] * particles.volume0[k];
+            total += particles.volume0[k];
+        };
+        if p.materials.is_empty() {
+            (0..fill.len()).for_each(&mut add);
+        } else {
+            for group in &particles.groups {
+                if p.materials.contains(&group.name) {
+                    group.range.clone().for_each(&mut add);
+                }
             }
         }
         let front = p.length * liquid / total.max(1e-300);
