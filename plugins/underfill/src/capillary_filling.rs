@@ -62,40 +62,42 @@ impl ReferenceLaw for CapillaryFilling {
         let Some(fill) = particles.shared.get("fill") else {
             return;
         };
-        let p = self.p.clone();
+        let CapillaryFillingParams {
+            length,
+            gap,
+            surface_tension,
+            contact_angle,
+            viscosity,
+            ..
+        } = self.p;
+        let materials = &self.p.materials;
         let (mut liquid, mut total) = (0.0, 0.0);
         let mut add = |k: usize| {
             liquid += fill[k] * particles.volume0[k];
             total += particles.volume0[k];
         };
-        if p.materials.is_empty() {
+        if materials.is_empty() {
             (0..fill.len()).for_each(&mut add);
         } else {
             for group in &particles.groups {
-                if p.materials.contains(&group.name) {
+                if materials.contains(&group.name) {
                     group.range.clone().for_each(&mut add);
                 }
             }
         }
-        let front = p.length * liquid / total.max(1e-300);
-        let t_fill = capillary_fill_time(
-            p.length,
-            p.gap,
-            p.surface_tension,
-            p.contact_angle,
-            p.viscosity,
-        );
-        self.observe_front(frame.time, front, p.length, t_fill);
+        let front = length * liquid / total.max(1e-300);
+        let t_fill = capillary_fill_time(length, gap, surface_tension, contact_angle, viscosity);
+        self.observe_front(frame.time, front, length, t_fill);
         if frame.time <= 0.0 {
             return;
         }
         let exact = capillary_front(
             frame.time,
-            p.length,
-            p.gap,
-            p.surface_tension,
-            p.contact_angle,
-            p.viscosity,
+            length,
+            gap,
+            surface_tension,
+            contact_angle,
+            viscosity,
         );
         self.error.add((front - exact).powi(2), exact * exact);
         self.measured = Some(front);

@@ -38,6 +38,35 @@ fn materials_by_particle(full: &ValidatedScene) -> Vec<&str> {
         .collect()
 }
 
+/// The rows of a hand-over state that had some particles removed already.
+struct StateRows<'a> {
+    /// The material of every original particle.
+    materials: Vec<&'a str>,
+    /// The original index of each particle of the state, by id.
+    kept: Vec<u32>,
+    /// The state's particle id of each row.
+    ids: &'a [f64],
+}
+
+/// The rows of the state `c`, which had `removed` removed.
+fn state_rows<'a>(
+    c: &'a Checkpoint,
+    full: &'a ValidatedScene,
+    removed: &[u32],
+    path: &str,
+) -> Result<StateRows<'a>, RunError> {
+    let materials = materials_by_particle(full);
+    let kept = kept(materials.len(), removed);
+    let ids = c
+        .get("particles.id", kept.len())
+        .map_err(|e| refused(path, format!("the hand-over state: {e}")))?;
+    Ok(StateRows {
+        materials,
+        kept,
+        ids,
+    })
+}
+
 fn refused(path: &str, message: String) -> RunError {
     RunError::Refused {
         path: path.into(),
@@ -54,12 +83,12 @@ pub(super) fn apply_rule(
     full: &ValidatedScene,
     path: &str,
 ) -> Result<Vec<u32>, RunError> {
-    let materials = materials_by_particle(full);
-    let kept = kept(materials.len(), removed);
+    let StateRows {
+        materials,
+        kept,
+        ids,
+    } = state_rows(c, full, removed, path)?;
     let n = kept.len();
-    let ids = c
-        .get("particles.id", n)
-        .map_err(|e| refused(path, format!("the hand-over state: {e}")))?;
     let values = c
         .arrays
         .get(&format!("shared.{}", rule.field))
@@ -150,12 +179,12 @@ pub(super) fn remove_rows(
     after: &[u32],
 ) -> Result<Checkpoint, RunError> {
     let path = "stages";
-    let materials = materials_by_particle(full);
-    let kept_before = kept(materials.len(), before);
+    let StateRows {
+        materials,
+        kept: kept_before,
+        ids,
+    } = state_rows(c, full, before, path)?;
     let n = kept_before.len();
-    let ids = c
-        .get("particles.id", n)
-        .map_err(|e| refused(path, format!("the hand-over state: {e}")))?;
     let mut new_id = vec![u32::MAX; materials.len()];
     for (k, &original) in kept(materials.len(), after).iter().enumerate() {
         new_id[original as usize] = k as u32;
