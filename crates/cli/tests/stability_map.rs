@@ -1,6 +1,6 @@
 //! `mpm check-stability --map` end to end: a small map of the vibrating bar (three rows,
 //! two CFL factors) through the binary: the outcomes measured, one JSON record per run,
-//! the picture decoded; and the errors for bad options.
+//! the picture decoded; and the errors for bad options and an unwritable picture folder.
 
 mod common;
 
@@ -102,7 +102,7 @@ fn a_small_bar_map_measures_where_explicit_steps_blow_up() {
 }
 
 #[test]
-fn bad_map_options_are_invalid_input() {
+fn bad_map_options_exit_2_and_an_unwritable_picture_folder_1() {
     let dir = tempfile::tempdir().unwrap();
     for (args, needle) in [
         (&["--cfl", "0.5,-1"][..], "must be a number in (0, 100]"),
@@ -118,6 +118,14 @@ fn bad_map_options_are_invalid_input() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {t}");
         assert!(t.contains(needle), "{args:?}: {t}");
     }
+    // A picture folder that cannot be made is an operational failure, before any run.
+    std::fs::write(dir.path().join("taken"), "a file").unwrap();
+    let o = mpm(
+        &["check-stability", "--map", "--map-dir", "taken/maps"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("taken/maps"), "{}", text(&o));
     // The map's options need --map.
     let o = mpm(&["check-stability", "--cfl", "1"], dir.path());
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
