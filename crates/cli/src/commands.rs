@@ -142,14 +142,33 @@ pub enum Command {
         #[arg(long, env = "MPM_TOKEN")]
         token: Option<String>,
     },
-    /// Run the stability suite (stiff and extreme cases) and print its table.
+    /// Run the stability suite (stiff and extreme cases) and print its table; with --map,
+    /// the stability maps instead.
     CheckStability {
         /// Only the cases whose name contains this.
         #[arg(long)]
         only: Option<String>,
-        /// Also write the results as JSON to this file.
+        /// Also write the results as JSON to this file (with --map: one record per run).
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Stability maps: run the bar, the impact and the near-incompressible block at
+        /// fixed steps of each CFL factor times the stable one, for every transfer × scheme
+        /// × kernel and implicit dynamics; print a table per case and draw a PNG per case.
+        /// Exits 0 whatever the runs do (a measurement), 1 when a run failed otherwise than
+        /// by stopping itself or a picture cannot be written.
+        #[arg(long)]
+        map: bool,
+        /// The CFL factors of the map's columns (default 0.1,0.25,0.5,0.75,1,1.25,1.5,2).
+        #[arg(long, value_delimiter = ',', requires = "map")]
+        cfl: Vec<f64>,
+        /// Only the map's rows one of these comma-separated patterns names: whole
+        /// `/`-separated parts of a label (`transfer/scheme/kernel`, `implicit/kernel`),
+        /// e.g. `apic` (not `pic`), `usl/bspline2`, `implicit`.
+        #[arg(long, requires = "map")]
+        rows: Option<String>,
+        /// Folder for the map's pictures (`<case>.png`).
+        #[arg(long, default_value = "stability-map", requires = "map")]
+        map_dir: PathBuf,
     },
     /// Run the built-in benchmark scenes (cube drop, Johnson–Cook impact, thermal) at a few
     /// grid sizes for a fixed number of steps; print particle-steps per second, bytes per
@@ -401,7 +420,15 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         }
         Command::Serve(args) => crate::service_cmd::serve(args, registry.clone()),
         Command::Worker(args) => crate::service_cmd::worker(args, registry.clone()),
-        Command::CheckStability { only, json } => {
+        Command::CheckStability {
+            only,
+            json,
+            map: true,
+            cfl,
+            rows,
+            map_dir,
+        } => check_stability_map(only, json, cfl, rows, map_dir, &registry),
+        Command::CheckStability { only, json, .. } => {
             let all = crate::stability::cases();
             let names: Vec<&str> = all.iter().map(|c| c.name).collect();
             let chosen: Vec<_> = all
@@ -537,6 +564,81 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             Ok(ExitStatus::Success)
         }
     }
+}
+
+/// `mpm check-stability --map`: runs the chosen map cases over the chosen rows and CFL
+/// factors, prints a table per case, writes `<map_dir>/<case>.png` and, with `json`, every
+/// run as one record. Bad options are invalid input (2); a run that failed otherwise than
+/// by stopping itself, or a file that cannot be written, is a failure (1); else success,
+/// whatever the runs did.
+fn check_stability_map(
+    only: Option<String>,
+    json: Option<PathBuf>,
+    cfl: Vec<f64>,
+    rows: Option<String>,
+    map_dir: PathBuf,
+    registry: &Registry,
+) -> anyhow::Result<ExitStatus> {
+    use crate::stability_map as map;
+    let factors = if cfl.is_empty() {
+        map::DEFAULT_FACTORS.to_vec()
+    } else {
+        cfl
+    };
+    map::check_factors(&factors).map_err(|e| input_error!("{e}"))?;
+    let rows = map::select_rows(rows.as_deref()).map_err(|e| input_error!("{e}"))?;
+    let all = map::cases();
+    let chosen: Vec<_> = all
+        .iter()
+        .filter(|c| only.as_deref().is_none_or(|o| c.name.contains(o)))
+        .collect();
+    if chosen.is_empty() {
+        let names: Vec<&str> = all.iter().map(|c| c.name).collect();
+        return Err(input_error!(
+            "--only {}: no map case has that in its name; the map's cases are {}",
+            only.as_deref().unwrap_or(""),
+            names.join(", ")
+        ));
+    }
+    std::fs::create_dir_all(&map_dir)
+        .with_context(|| format!("cannot create `{}`", map_dir.display()))?;
+    let mut cells = Vec::new();
+    for case in chosen {
+        eprintln!(
+            "{}: {} ({} rows × {} CFL factors)",
+            case.name,
+            case.what,
+            rows.len(),
+            factors.len()
+        );
+        let done = map::run_map(case, &rows, &factors, registry, |row, cells| {
+            let line: Vec<String> = cells.iter().map(map::cell_text).collect();
+            eprintln!("  {}: {}", row.label, line.join(", "));
+        })
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+        out!("{}\n", map::table(&done))?;
+        let png = map_dir.join(format!("{}.png", done.case));
+        crate::stability_map_plot::draw(&png, &done)?;
+        outln!("picture: {}\n", png.display())?;
+        cells.extend(done.cells);
+    }
+    outln!("{}", map::summary(&cells))?;
+    if let Some(path) = json {
+        std::fs::write(&path, serde_json::to_string_pretty(&cells)?)
+            .with_context(|| format!("cannot write `{}`", path.display()))?;
+    }
+    let errors: Vec<&map::MapCell> = cells
+        .iter()
+        .filter(|c| c.outcome == map::MapOutcome::Error)
+        .collect();
+    for c in &errors {
+        eprintln!("{} {} at CFL {}: {}", c.case, c.row, c.cfl, c.note);
+    }
+    Ok(if errors.is_empty() {
+        ExitStatus::Success
+    } else {
+        ExitStatus::Failure
+    })
 }
 
 /// Prints a plugin catalogue (see `Registry::catalogue`): each plugin with its materials,

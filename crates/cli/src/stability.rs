@@ -93,7 +93,7 @@ fn contrast(ratio: f64) -> Value {
 }
 
 /// A block squeezed under gravity on the floor, Poisson ratio `nu`, with or without F-bar.
-fn near_incompressible(nu: f64, fbar: bool) -> Value {
+pub(crate) fn near_incompressible(nu: f64, fbar: bool) -> Value {
     let mut s = json!({
         "name": "incompressible", "dimension": 2,
         "domain": {"min": [0, 0], "max": [1, 0.5], "cell_size": 0.025,
@@ -112,7 +112,7 @@ fn near_incompressible(nu: f64, fbar: bool) -> Value {
 /// The vibrating bar with a fixed time step `factor` times its stable one, allowing
 /// Courant number `max_cfl`. The stable step is dx / (c + max |v|) = 0.05 / 10.01 s;
 /// 4.99e-3 s is that, rounded down.
-fn bar_time_step(factor: f64, max_cfl: f64) -> Value {
+pub(crate) fn bar_time_step(factor: f64, max_cfl: f64) -> Value {
     let mut s: Value = serde_json::from_str(include_str!("../../../examples/vibrating-bar.json"))
         .expect("the example is JSON");
     s["solver"]["dt"] = json!(4.99e-3 * factor);
@@ -178,7 +178,7 @@ fn sparse_surface() -> Value {
 
 /// A plane-strain 4340 steel block (Johnson–Cook with damage, Mie–Grüneisen) hitting a rigid
 /// wall at `speed` m/s: plasticity, shocks, failure and heating at once.
-fn impact(speed: f64) -> Value {
+pub(crate) fn impact(speed: f64) -> Value {
     json!({
         "name": format!("impact-{speed}"), "dimension": 2,
         "domain": {"min": [0, 0], "max": [0.1, 0.012], "cell_size": 0.0005,
@@ -508,6 +508,73 @@ pub fn cases() -> Vec<Case> {
     cases
 }
 
+/// How a scene's run ended, before anyone judges it: what the suite and the stability map
+/// (`stability_map`) share.
+pub(crate) enum Ran {
+    /// The scene failed validation (the message lists the issues).
+    Invalid(String),
+    /// Refused before the first step (`path: message`).
+    Refused(String),
+    /// The run failed otherwise than by stopping on its own checks (output, I/O).
+    Error(String),
+    /// It ran to its end time, or until it stopped itself.
+    Done {
+        /// The run's metrics.
+        metrics: Box<Metrics>,
+        /// Wall seconds of the run (setup excluded).
+        wall_seconds: f64,
+    },
+}
+
+/// Validates `scene`, checks it before the first step and runs it without writing results.
+pub(crate) fn run_value(scene: &Value, registry: &Registry) -> Ran {
+    let scene = match mpm_core::scene::parse_scene_value(scene.clone(), registry, Path::new(".")) {
+        Ok(s) => s,
+        Err(e) => return Ran::Invalid(e.to_string()),
+    };
+    if let Err(RunError::Refused { path, message }) = preflight(&scene) {
+        return Ran::Refused(format!("{path}: {message}"));
+    }
+    let start = Instant::now();
+    match run_scene(&scene, &mut NullSink, &mut |_: &Progress| Control::Continue) {
+        Ok(m) => Ran::Done {
+            metrics: Box::new(m),
+            wall_seconds: start.elapsed().as_secs_f64(),
+        },
+        Err(e) => Ran::Error(e.to_string()),
+    }
+}
+
+/// `finished`, `stopped` or `cancelled`: how a run that ran ended.
+pub(crate) fn outcome_name(metrics: &Metrics) -> &'static str {
+    match metrics.outcome {
+        Some(Outcome::Finished) => "finished",
+        Some(Outcome::Stopped) => "stopped",
+        _ => "cancelled",
+    }
+}
+
+/// The run's stop diagnostic as one line (`step N: field = value: message`), or "".
+pub(crate) fn diagnostic_note(metrics: &Metrics) -> String {
+    metrics.diagnostic.as_ref().map_or_else(String::new, |d| {
+        format!(
+            "step {}: {} = {:.3e}: {}",
+            d.step, d.field, d.value, d.message
+        )
+    })
+}
+
+/// The relative changes of momentum and angular momentum where nothing acts from outside
+/// (`None` where something does, or where the run cannot measure them).
+pub(crate) fn momentum_changes(metrics: &Metrics) -> (Option<f64>, Option<f64>) {
+    let kept = &metrics.conservation;
+    if kept.external_forces {
+        (None, None)
+    } else {
+        (Some(kept.momentum_change), kept.angular_momentum_change)
+    }
+}
+
 /// Runs one case.
 pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
     let mut result = CaseResult {
@@ -524,53 +591,36 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
         max_speed: f64::NAN,
         note: String::new(),
     };
-    let scene =
-        match mpm_core::scene::parse_scene_value(case.scene.clone(), registry, Path::new(".")) {
-            Ok(s) => s,
-            Err(e) => {
-                result.outcome = "invalid".into();
-                result.note = e.to_string();
-                return result;
-            }
-        };
-    if let Err(RunError::Refused { path, message }) = preflight(&scene) {
-        result.outcome = "refused".into();
-        result.note = format!("{path}: {message}");
-        result.pass = case.expected == Expected::Refused;
-        return result;
-    }
-    let start = Instant::now();
-    let metrics: Metrics =
-        match run_scene(&scene, &mut NullSink, &mut |_: &Progress| Control::Continue) {
-            Ok(m) => m,
-            Err(e) => {
-                result.outcome = "error".into();
-                result.note = e.to_string();
-                return result;
-            }
-        };
-    result.wall_seconds = start.elapsed().as_secs_f64();
+    let (metrics, wall_seconds) = match run_value(&case.scene, registry) {
+        Ran::Invalid(note) => {
+            result.outcome = "invalid".into();
+            result.note = note;
+            return result;
+        }
+        Ran::Refused(note) => {
+            result.outcome = "refused".into();
+            result.note = note;
+            result.pass = case.expected == Expected::Refused;
+            return result;
+        }
+        Ran::Error(note) => {
+            result.outcome = "error".into();
+            result.note = note;
+            return result;
+        }
+        Ran::Done {
+            metrics,
+            wall_seconds,
+        } => (metrics, wall_seconds),
+    };
+    result.wall_seconds = wall_seconds;
     result.steps = metrics.steps;
     result.energy_drift = metrics.energy_drift;
-    let kept = &metrics.conservation;
-    if !kept.external_forces {
-        result.momentum_change = Some(kept.momentum_change);
-        result.angular_momentum_change = kept.angular_momentum_change;
-    }
+    (result.momentum_change, result.angular_momentum_change) = momentum_changes(&metrics);
     result.min_det_f = metrics.min_det_f;
     result.max_speed = metrics.max_speed;
-    result.outcome = match metrics.outcome {
-        Some(Outcome::Finished) => "finished",
-        Some(Outcome::Stopped) => "stopped",
-        _ => "cancelled",
-    }
-    .into();
-    if let Some(d) = &metrics.diagnostic {
-        result.note = format!(
-            "step {}: {} = {:.3e}: {}",
-            d.step, d.field, d.value, d.message
-        );
-    }
+    result.outcome = outcome_name(&metrics).into();
+    result.note = diagnostic_note(&metrics);
     let expected = match case.expected {
         Expected::Finished => "finished",
         Expected::Stopped => "stopped",
@@ -578,7 +628,12 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
     };
     result.pass = result.outcome == expected;
     if result.outcome == "finished" {
-        let wrong = physics_failures(&result, case.keeps_angular_momentum());
+        let wrong = physics_failures(
+            result.energy_drift,
+            result.momentum_change,
+            result.angular_momentum_change,
+            case.keeps_angular_momentum(),
+        );
         if !wrong.is_empty() {
             result.pass = false;
             result.note = wrong.join("; ");
@@ -593,28 +648,29 @@ pub const MAX_ENERGY_GROWTH: f64 = 0.02;
 /// Most a finished case's momentum may change where nothing acts from outside: round-off.
 pub const MAX_MOMENTUM_CHANGE: f64 = 1e-10;
 
-/// What a finished case got wrong physically: energy growth, or momentum (and, where the
-/// transfer keeps it, angular momentum) not kept where nothing acts from outside.
-fn physics_failures(r: &CaseResult, keeps_angular: bool) -> Vec<String> {
+/// What a finished case got wrong physically: energy growth (or an energy drift that is not
+/// a number), or momentum (and, where the transfer keeps it, angular momentum) not kept
+/// where nothing acts from outside.
+pub(crate) fn physics_failures(
+    energy_drift: f64,
+    momentum_change: Option<f64>,
+    angular_momentum_change: Option<f64>,
+    keeps_angular: bool,
+) -> Vec<String> {
     let mut wrong = Vec::new();
-    if r.energy_drift > MAX_ENERGY_GROWTH {
+    if energy_drift.is_nan() || energy_drift > MAX_ENERGY_GROWTH {
         wrong.push(format!(
-            "energy grew by {:.2e} of the largest mechanical energy (bound {MAX_ENERGY_GROWTH})",
-            r.energy_drift
+            "energy grew by {energy_drift:.2e} of the largest mechanical energy (bound {MAX_ENERGY_GROWTH})"
         ));
     }
-    if let Some(change) = r
-        .momentum_change
-        .filter(|c| c.is_nan() || *c > MAX_MOMENTUM_CHANGE)
-    {
+    if let Some(change) = momentum_change.filter(|c| c.is_nan() || *c > MAX_MOMENTUM_CHANGE) {
         wrong.push(format!(
             "momentum changed by {change:.2e} (bound {MAX_MOMENTUM_CHANGE:e})"
         ));
     }
     if keeps_angular
-        && let Some(change) = r
-            .angular_momentum_change
-            .filter(|c| c.is_nan() || *c > MAX_MOMENTUM_CHANGE)
+        && let Some(change) =
+            angular_momentum_change.filter(|c| c.is_nan() || *c > MAX_MOMENTUM_CHANGE)
     {
         wrong.push(format!(
             "angular momentum changed by {change:.2e} (bound {MAX_MOMENTUM_CHANGE:e})"
@@ -653,40 +709,19 @@ pub fn table(results: &[CaseResult]) -> String {
 mod tests {
     use super::*;
 
-    fn finished(drift: f64, momentum: Option<f64>, angular: Option<f64>) -> CaseResult {
-        CaseResult {
-            name: "case".into(),
-            expected: Expected::Finished,
-            outcome: "finished".into(),
-            pass: true,
-            steps: 1,
-            wall_seconds: 0.0,
-            energy_drift: drift,
-            momentum_change: momentum,
-            angular_momentum_change: angular,
-            min_det_f: 1.0,
-            max_speed: 0.0,
-            note: String::new(),
-        }
+    fn failures(drift: f64, momentum: Option<f64>, angular: Option<f64>, keeps: bool) -> usize {
+        physics_failures(drift, momentum, angular, keeps).len()
     }
 
     #[test]
     fn a_finished_case_with_wrong_physics_fails() {
-        assert!(physics_failures(&finished(-0.5, Some(1e-15), Some(1e-15)), true).is_empty());
-        assert_eq!(physics_failures(&finished(0.05, None, None), true).len(), 1);
-        assert_eq!(
-            physics_failures(&finished(0.0, Some(1e-6), None), true).len(),
-            1
-        );
-        assert_eq!(
-            physics_failures(&finished(0.0, Some(0.0), Some(1e-3)), true).len(),
-            1
-        );
+        assert_eq!(failures(-0.5, Some(1e-15), Some(1e-15), true), 0);
+        assert_eq!(failures(0.05, None, None, true), 1);
+        assert_eq!(failures(f64::NAN, None, None, true), 1);
+        assert_eq!(failures(0.0, Some(1e-6), None, true), 1);
+        assert_eq!(failures(0.0, Some(0.0), Some(1e-3), true), 1);
         // PIC or FLIP need not keep angular momentum.
-        assert!(physics_failures(&finished(0.0, Some(0.0), Some(1e-3)), false).is_empty());
-        assert_eq!(
-            physics_failures(&finished(0.0, Some(f64::NAN), None), true).len(),
-            1
-        );
+        assert_eq!(failures(0.0, Some(0.0), Some(1e-3), false), 0);
+        assert_eq!(failures(0.0, Some(f64::NAN), None, true), 1);
     }
 }
