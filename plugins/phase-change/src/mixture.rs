@@ -7,9 +7,10 @@
 //! gelation loads a curing resin. The laws see the mechanical F (free strains removed).
 
 use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, lame_parameters,
+    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, TangentBatch,
+    lame_parameters,
 };
-use mpm_core::math::{Matrix, determinant, inverse};
+use mpm_core::math::{Matrix, cofactor, determinant, inverse};
 use mpm_core::plugin::check_elastic_constants;
 use mpm_core::scene::Issue;
 use schemars::JsonSchema;
@@ -184,6 +185,67 @@ impl ConstitutiveLaw for PhaseMixture {
         BatchStats {
             strain_energy: energy,
             max_wave_speed: (stiffest / self.params.density).sqrt(),
+        }
+    }
+
+    fn has_stress_derivative(&self) -> bool {
+        true
+    }
+
+    /// The derivative of the update from the step's starting state (F₀ = `previous_F`,
+    /// s₀ = `solid_stress`): with δL = δF F₀⁻¹, δε = sym δL and δω = skew δL,
+    /// δσ = δω s₀ − s₀ δω + φ (λ tr δε I + 2μ δε) + (1 − φ)(2η dev δε / dt + K tr(F⁻¹δF) I).
+    /// Exact, so the implicit mode's Krylov products have no difference noise: a liquid
+    /// (shear stiffness η/dt, bulk K many orders larger) is where that noise hurts most.
+    fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
+        let [previous, solid, ..] = batch.state.fields;
+        let fraction = batch.shared[0];
+        let (lambda, mu) = (self.lambda, self.mu);
+        let (eta, bulk) = (
+            self.params.liquid.viscosity,
+            self.params.liquid.bulk_modulus,
+        );
+        let load = |slot: &[f64]| {
+            let mut m = Matrix::<D>::zeros();
+            for r in 0..D {
+                for c in 0..D {
+                    m[(r, c)] = slot[r * D + c];
+                }
+            }
+            m
+        };
+        let identity = Matrix::<D>::identity();
+        for (k, ((f, df), out)) in batch
+            .deformation_gradient
+            .iter()
+            .zip(batch.direction)
+            .zip(batch.stress_change.iter_mut())
+            .enumerate()
+        {
+            let phi = fraction.get(k).copied().unwrap_or(1.0).clamp(0.0, 1.0);
+            let f_prev = load(&previous[9 * k..9 * k + 9]);
+            let s0 = load(&solid[9 * k..9 * k + 9]);
+            // Without an inverse the update takes the increment as I: no change.
+            let d_increment = inverse(&f_prev).map_or(Matrix::<D>::zeros(), |inv| df * inv);
+            let d_strain = (d_increment + d_increment.transpose()) * 0.5;
+            let d_spin = (d_increment - d_increment.transpose()) * 0.5;
+            let d_solid = d_spin * s0 - s0 * d_spin
+                + (identity * (lambda * d_strain.trace()) + d_strain * (2.0 * mu)) * phi;
+            let j = determinant(f);
+            // d ln J = tr(F⁻¹ δF) = cof(F) : δF / J (the update clamps J at 1e-300).
+            let d_ln_j = if j > 1e-300 {
+                cofactor(f).component_mul(df).sum() / j
+            } else {
+                0.0
+            };
+            let d_rate = if batch.dt > 0.0 {
+                d_strain / batch.dt
+            } else {
+                Matrix::<D>::zeros()
+            };
+            let d_deviatoric = d_rate - identity * (d_rate.trace() / 3.0);
+            let d_fluid = d_deviatoric * (2.0 * eta) + identity * (bulk * d_ln_j);
+            *out = d_solid + d_fluid * (1.0 - phi);
         }
     }
 }
