@@ -146,7 +146,7 @@ impl OutputSink for SeriesSink {
 pub fn frames_for(steps: u64) -> u64 {
     (1..=MAX_SAMPLES.min(steps))
         .rev()
-        .find(|d| steps % d == 0)
+        .find(|d| steps.is_multiple_of(*d))
         .unwrap_or(1)
 }
 

@@ -1,8 +1,8 @@
 //! The picture of a scene's long runs (PNG): the relative change of the total energy and,
 //! where recorded, of the angular momentum against time, a line per transfer; drawn with
-//! plotters and the bundled font. The vertical axis is symmetric-logarithmic: linear
-//! within ±[`LINEAR_BELOW`] and logarithmic outside, so PIC's loss of nearly everything and
-//! a drift of 1e-5 both show.
+//! plotters and the bundled font. The vertical axis is linear (a symmetric-log axis turned
+//! the bar's energy, which swings about its start within each period, into noise), from the
+//! lowest change to the highest; the legend gives each line's final value.
 
 use crate::plot::register_font;
 use crate::stability_long::{LongCase, LongRun};
@@ -13,8 +13,6 @@ use std::path::Path;
 
 /// Width and height of a picture, pixels.
 pub const SIZE: (u32, u32) = (1000, 480);
-/// Where the vertical axis turns from linear to logarithmic.
-pub const LINEAR_BELOW: f64 = 1e-6;
 
 /// The colour of each transfer's line.
 fn colour(transfer: &str) -> RGBColor {
@@ -27,30 +25,9 @@ fn colour(transfer: &str) -> RGBColor {
     }
 }
 
-/// The symmetric-logarithmic coordinate of a relative change: x / [`LINEAR_BELOW`] within
-/// ±[`LINEAR_BELOW`], ±(1 + log10(|x| / [`LINEAR_BELOW`])) outside, so that the integer
-/// coordinates are 0 and ± powers of ten.
-fn symlog(x: f64) -> f64 {
-    let r = x.abs() / LINEAR_BELOW;
-    if r <= 1.0 {
-        x / LINEAR_BELOW
-    } else {
-        x.signum() * (1.0 + r.log10())
-    }
-}
-
-/// The relative change at symmetric-logarithmic coordinate `y`.
-fn symexp(y: f64) -> f64 {
-    if y.abs() <= 1.0 {
-        y * LINEAR_BELOW
-    } else {
-        y.signum() * LINEAR_BELOW * 10f64.powf(y.abs() - 1.0)
-    }
-}
-
 /// Line width of each transfer: APIC wider, so that MLS (often on top of it) leaves it seen.
 fn width(transfer: &str) -> u32 {
-    if transfer == "apic" { 5 } else { 2 }
+    if transfer == "apic" { 4 } else { 2 }
 }
 
 /// Writes the picture of `case`'s `runs` to `path` (PNG).
@@ -101,13 +78,12 @@ where
     for (area, (label, series)) in areas.iter().zip(&panels) {
         let values = runs
             .iter()
-            .filter_map(|r| series(r))
+            .filter_map(series)
             .flatten()
             .filter(|v| v.is_finite());
-        let (lo, hi) = values.fold((0.0f64, 0.0f64), |(lo, hi), &v| {
-            (lo.min(symlog(v)), hi.max(symlog(v)))
-        });
-        let (lo, hi) = ((lo + 1e-9).floor().min(-1.0), (hi - 1e-9).ceil().max(1.0));
+        let (lo, hi) = values.fold((0.0f64, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        let pad = 0.05 * (hi - lo).max(1e-3);
+        let (lo, hi) = (lo - pad, hi + pad);
         let mut chart = ChartBuilder::on(area)
             .margin(12)
             .x_label_area_size(40)
@@ -118,15 +94,8 @@ where
             .configure_mesh()
             .x_desc("time, s")
             .y_desc(*label)
-            .y_labels(((hi - lo) as usize + 1).min(16))
-            .y_label_formatter(&|y| {
-                let x = symexp(*y);
-                if x.abs() < LINEAR_BELOW / 2.0 {
-                    "0".into()
-                } else {
-                    format!("{x:+.0e}")
-                }
-            })
+            .y_label_formatter(&|y| format!("{:.2}", y + 0.0))
+            .light_line_style(WHITE)
             .label_style(("sans-serif", 13))
             .draw()
             .map_err(err)?;
@@ -140,7 +109,7 @@ where
                 .iter()
                 .zip(values)
                 .filter(|(_, v)| v.is_finite())
-                .map(|(t, v)| (*t, symlog(*v)))
+                .map(|(t, v)| (*t, *v))
                 .collect();
             chart
                 .draw_series(LineSeries::new(points, c.stroke_width(w)))
@@ -163,21 +132,4 @@ where
     }
     root.present().map_err(err)?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn symlog_is_inverted_by_symexp() {
-        for x in [-0.99, -1e-3, -1e-6, -1e-7, 0.0, 2e-6, 0.5, 3.0] {
-            assert!(
-                (symexp(symlog(x)) - x).abs() <= 1e-12 * (1.0 + x.abs()),
-                "{x}"
-            );
-        }
-        assert!((symlog(-1.0) + 7.0).abs() < 1e-12);
-        assert!((symexp(3.0) - 1e-4).abs() < 1e-18);
-    }
 }
