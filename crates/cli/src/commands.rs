@@ -143,7 +143,7 @@ pub enum Command {
         token: Option<String>,
     },
     /// Run the stability suite (stiff and extreme cases) and print its table; with --map,
-    /// the stability maps instead.
+    /// the stability maps instead; with --long, the long runs.
     CheckStability {
         /// Only the cases whose name contains this.
         #[arg(long)]
@@ -156,8 +156,18 @@ pub enum Command {
         /// × kernel and implicit dynamics; print a table per case and draw a PNG per case.
         /// Exits 0 whatever the runs do (a measurement), 1 when a run failed otherwise than
         /// by stopping itself or a picture cannot be written.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "long")]
         map: bool,
+        /// Long runs: the spinning disk and the vibrating bar for --steps fixed steps with
+        /// each transfer; a table, the series in --json, a PNG per scene in --plot-dir.
+        #[arg(long)]
+        long: bool,
+        /// Steps of each long run (default 100000).
+        #[arg(long, requires = "long")]
+        steps: Option<u64>,
+        /// Folder for the long runs' pictures (`<scene>.png`).
+        #[arg(long, default_value = "stability-long", requires = "long")]
+        plot_dir: PathBuf,
         /// The CFL factors of the map's columns (default 0.1,0.25,0.5,0.75,1,1.25,1.5,2).
         #[arg(long, value_delimiter = ',', requires = "map")]
         cfl: Vec<f64>,
@@ -427,7 +437,16 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             cfl,
             rows,
             map_dir,
+            ..
         } => check_stability_map(only, json, cfl, rows, map_dir, &registry),
+        Command::CheckStability {
+            only,
+            json,
+            long: true,
+            steps,
+            plot_dir,
+            ..
+        } => crate::stability_long::check_stability_long(only, json, steps, plot_dir, &registry),
         Command::CheckStability { only, json, .. } => {
             let all = crate::stability::cases();
             let names: Vec<&str> = all.iter().map(|c| c.name).collect();

@@ -18,6 +18,8 @@ mod service_cmd;
 pub mod stability;
 pub mod stability_cohesive;
 pub mod stability_implicit;
+pub mod stability_long;
+mod stability_long_plot;
 pub mod stability_map;
 mod stability_map_plot;
 mod stdout;

@@ -137,7 +137,7 @@ fn compression() -> Value {
 }
 
 /// A disk spinning freely; energy must stay.
-fn spinning_disk() -> Value {
+pub(crate) fn spinning_disk() -> Value {
     json!({
         "name": "spin", "dimension": 2,
         "domain": {"min": [0, 0], "max": [1, 1], "cell_size": 0.02},
