@@ -449,18 +449,12 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         } => crate::stability_long::check_stability_long(only, json, steps, plot_dir, &registry),
         Command::CheckStability { only, json, .. } => {
             let all = crate::stability::cases();
-            let names: Vec<&str> = all.iter().map(|c| c.name).collect();
-            let chosen: Vec<_> = all
-                .iter()
-                .filter(|c| only.as_deref().is_none_or(|o| c.name.contains(o)))
-                .collect();
-            if chosen.is_empty() {
-                return Err(input_error!(
-                    "--only {}: no stability case has that in its name; the cases are {}",
-                    only.as_deref().unwrap_or(""),
-                    names.join(", ")
-                ));
-            }
+            let chosen = crate::stability::choose_cases(
+                &all,
+                |c| c.name,
+                only.as_deref(),
+                "stability case",
+            )?;
             let mut results = Vec::new();
             for case in chosen {
                 eprintln!("{}: {}", case.name, case.what);
@@ -607,18 +601,7 @@ fn check_stability_map(
     map::check_factors(&factors).map_err(|e| input_error!("{e}"))?;
     let rows = map::select_rows(rows.as_deref()).map_err(|e| input_error!("{e}"))?;
     let all = map::cases();
-    let chosen: Vec<_> = all
-        .iter()
-        .filter(|c| only.as_deref().is_none_or(|o| c.name.contains(o)))
-        .collect();
-    if chosen.is_empty() {
-        let names: Vec<&str> = all.iter().map(|c| c.name).collect();
-        return Err(input_error!(
-            "--only {}: no map case has that in its name; the map's cases are {}",
-            only.as_deref().unwrap_or(""),
-            names.join(", ")
-        ));
-    }
+    let chosen = crate::stability::choose_cases(&all, |c| c.name, only.as_deref(), "map case")?;
     std::fs::create_dir_all(&map_dir)
         .with_context(|| format!("cannot create `{}`", map_dir.display()))?;
     let mut cells = Vec::new();

@@ -508,6 +508,30 @@ pub fn cases() -> Vec<Case> {
     cases
 }
 
+/// The cases whose name contains `only` (every case without it), or an input error naming
+/// the cases when none does; `kind` names the list in the message ("stability case", "map
+/// case", "long case"). The suite, the map and the long runs choose their cases with it.
+pub(crate) fn choose_cases<'a, T>(
+    all: &'a [T],
+    name: impl Fn(&T) -> &str,
+    only: Option<&str>,
+    kind: &str,
+) -> anyhow::Result<Vec<&'a T>> {
+    let chosen: Vec<&T> = all
+        .iter()
+        .filter(|c| only.is_none_or(|o| name(c).contains(o)))
+        .collect();
+    if chosen.is_empty() {
+        let names: Vec<&str> = all.iter().map(&name).collect();
+        return Err(crate::exit_status::input_error!(
+            "--only {}: no {kind} has that in its name; the {kind}s are {}",
+            only.unwrap_or(""),
+            names.join(", ")
+        ));
+    }
+    Ok(chosen)
+}
+
 /// How a scene's run ended, before anyone judges it: what the suite and the stability map
 /// (`stability_map`) share.
 pub(crate) enum Ran {

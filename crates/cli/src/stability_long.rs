@@ -276,18 +276,7 @@ pub(crate) fn check_stability_long(
     let steps = steps.unwrap_or(DEFAULT_STEPS);
     check_steps(steps).map_err(|e| input_error!("{e}"))?;
     let all = cases();
-    let chosen: Vec<&LongCase> = all
-        .iter()
-        .filter(|c| only.as_deref().is_none_or(|o| c.name.contains(o)))
-        .collect();
-    if chosen.is_empty() {
-        let names: Vec<&str> = all.iter().map(|c| c.name).collect();
-        return Err(input_error!(
-            "--only {}: no long case has that in its name; the long cases are {}",
-            only.as_deref().unwrap_or(""),
-            names.join(", ")
-        ));
-    }
+    let chosen = crate::stability::choose_cases(&all, |c| c.name, only.as_deref(), "long case")?;
     std::fs::create_dir_all(&plot_dir)
         .with_context(|| format!("cannot create `{}`", plot_dir.display()))?;
     let mut runs = Vec::new();
