@@ -40,6 +40,12 @@ fn block(e: f64, nu: f64, dt: f64, walls: Value, implicit: Value) -> Value {
     })
 }
 
+/// `scene` with `solver.anti_locking: "fbar"`.
+fn with_fbar(mut scene: Value) -> Value {
+    scene["solver"]["anti_locking"] = json!("fbar");
+    scene
+}
+
 fn floor() -> Value {
     json!([{"sides": ["y-"], "condition": "stick"}])
 }
@@ -57,6 +63,18 @@ pub fn cases() -> Vec<Case> {
             name: "implicit-nu-0.4999",
             what: "implicit static, block under gravity, nu 0.4999 (no anti-locking: it locks)",
             scene: block(1e5, 0.4999, 0.25, floor(), json!({"gravity_ramp": 1.0})),
+            expected: Expected::Finished,
+        },
+        Case {
+            name: "implicit-nu-0.4999-fbar",
+            what: "implicit static, the same block with F-bar over stencil patches",
+            scene: with_fbar(block(
+                1e5,
+                0.4999,
+                0.25,
+                floor(),
+                json!({"gravity_ramp": 1.0}),
+            )),
             expected: Expected::Finished,
         },
         Case {

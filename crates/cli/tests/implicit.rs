@@ -35,6 +35,53 @@ fn bimaterial_strip_bends_to_timoshenkos_curvature() {
 }
 
 #[test]
+fn implicit_fbar_removes_volumetric_locking_of_a_near_incompressible_beam() {
+    // The short cantilever of the explicit F-bar test (L = 0.5 m, h = 0.1 m, 4 cells thick,
+    // small load), solved in one implicit static step with ν = 0.4999. Measured: 16.6% too
+    // stiff without anti-locking (51 GMRES iterations), 1.15% with F-bar over stencil
+    // patches (8); with ν = 0.3, 4.4% and 5.8% (F-bar softens a little, as it does in the
+    // explicit mode; the beam-theory reference leaves out shear, a few % at L/h = 5).
+    let tip = |anti_locking: &str, nu: f64| {
+        let nu = format!("{nu}");
+        let m = run(&load_example(
+            "cantilever.json",
+            &[
+                "domain.cell_size=0.025",
+                "domain.min=[0,-0.3]",
+                "domain.max=[0.6,0.2]",
+                "bodies[0].shape.box.max=[0.5,0.1]",
+                &format!("materials.beam.poisson_ratio={nu}"),
+                &format!("reference.poisson_ratio={nu}"),
+                "reference.length=0.5",
+                "reference.thickness=0.1",
+                "solver.gravity=[0,-1]",
+                "reference.gravity=1",
+                "solver.end_time=1",
+                "solver.dt=1",
+                "solver.damping=0",
+                "output.frames=1",
+                r#"solver.mechanics={"implicit":{}}"#,
+                &format!("solver.anti_locking={anti_locking}"),
+            ],
+        ));
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+        (
+            m.error.unwrap(),
+            m.measured_value.unwrap() < m.reference_value.unwrap(),
+        )
+    };
+    let (locked, stiff) = tip("none", 0.4999);
+    assert!(locked > 0.1 && stiff, "expected locking: {locked}");
+    let (fbar, _) = tip("fbar", 0.4999);
+    assert!(fbar < 0.02, "F-bar error {fbar}");
+    let (compressible, _) = tip("fbar", 0.3);
+    assert!(
+        compressible < 0.08,
+        "F-bar error at ν = 0.3: {compressible}"
+    );
+}
+
+#[test]
 fn bimaterial_strip_in_3d_bends_to_the_biaxial_closed_form() {
     // Quarter model, 4 cells through the thickness: measured 1.9%.
     let m = run(&load_example("bimaterial-strip-3d.json", &[]));
@@ -124,11 +171,6 @@ fn implicit_settings_are_checked_with_their_paths() {
     ] {
         assert!(text.contains(path), "{path} not in {text}");
     }
-    let issues = invalid_example("bimaterial-strip.json", &["solver.anti_locking=fbar"]);
-    assert!(
-        issues.iter().any(|i| i.starts_with("solver.anti_locking")),
-        "{issues:?}"
-    );
     let issues = invalid_example(
         "bimaterial-strip.json",
         &[r#"solver.mechanics={"implicit":{"form":"quasi"}}"#],
@@ -246,8 +288,9 @@ fn plate_with_a_hole_carries_kirschs_stress_field() {
     assert!(error < 0.05, "near-field error {error}");
 }
 
-#[test]
-fn implicit_plasticity_follows_the_uniaxial_strain_closed_form() {
+/// Mean σ_yy error and largest particle error of the Johnson–Cook block in uniaxial
+/// strain below, with `solver.anti_locking` set to `anti_locking`.
+fn uniaxial_strain_errors(anti_locking: &str) -> (f64, f64) {
     // A Johnson–Cook block (rate-independent: C = 0) compressed in plane strain between
     // slip walls by a stick grip moving down: uniaxial strain, 10 static steps to 4%
     // shortening, about 10× the yield strain. Closed form at each particle's own stretch
@@ -261,7 +304,7 @@ fn implicit_plasticity_follows_the_uniaxial_strain_closed_form() {
         "domain": {"min": [0.0, 0.0], "max": [0.01, 0.014], "cell_size": 0.001,
             "walls": [{"sides": ["x-", "x+", "y-"], "condition": "slip"}]},
         "solver": {"end_time": 1e-3, "dt": 1e-4, "kernel": "bspline2", "transfer": "apic",
-            "mechanics": {"implicit": {"form": "static"}}},
+            "anti_locking": anti_locking, "mechanics": {"implicit": {"form": "static"}}},
         "materials": {"steel": {"type": "johnson_cook", "density": 7830.0,
             "youngs_modulus": e, "poisson_ratio": nu, "specific_heat": 477.0,
             "taylor_quinney": 0.0,
@@ -294,7 +337,9 @@ fn implicit_plasticity_follows_the_uniaxial_strain_closed_form() {
         if !(0.001..0.007).contains(&x[2 * p + 1]) {
             continue;
         }
-        let stretch = f[4 * p + 3];
+        // J = λ in uniaxial strain (F_xx = 1); with F-bar F̄ is J̄/J-scaled in the plane,
+        // so J̄ = det F̄ is the stretch its stress answers to.
+        let stretch = f[4 * p] * f[4 * p + 3] - f[4 * p + 1] * f[4 * p + 2];
         shortest = shortest.min(stretch);
         let strain = stretch.ln().abs();
         let (mut lo, mut hi) = (0.0, 2.0 / 3.0 * strain);
@@ -314,23 +359,53 @@ fn implicit_plasticity_follows_the_uniaxial_strain_closed_form() {
         checked += 1;
     }
     let mean = sum / sum_expected - 1.0;
+    let (mut lo_s, mut hi_s, mut lo_j, mut hi_j) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in 0..x.len() / 2 {
+        if !(0.001..0.007).contains(&x[2 * p + 1]) {
+            continue;
+        }
+        let s = stress[4 * p + 3];
+        let j = f[4 * p] * f[4 * p + 3] - f[4 * p + 1] * f[4 * p + 2];
+        lo_s = lo_s.min(s);
+        hi_s = hi_s.max(s);
+        lo_j = lo_j.min(j);
+        hi_j = hi_j.max(j);
+    }
     println!(
-        "{checked} particles, shortest stretch {shortest:.4}, mean σ_yy error {mean:.2e}, \
-         largest particle error {scatter:.2e}"
+        "spread: σ_yy {lo_s:.4e} .. {hi_s:.4e}, J {lo_j:.5} .. {hi_j:.5}, mean σ_yy {:.4e}",
+        sum / checked as f64
+    );
+    println!(
+        "anti_locking {anti_locking}: {checked} particles, shortest stretch {shortest:.4}, \
+         mean σ_yy error {mean:.2e}, largest particle error {scatter:.2e}"
     );
     assert!(checked > 50);
     assert!(
         shortest < 0.97,
         "the block must be compressed well past yield: {shortest}"
     );
-    // Measured: mean −0.46%. Particle by particle the stress scatters by up to 20% (also
-    // with 3 and 4 particles per cell): isochoric plastic flow leaves only the bulk
-    // modulus against volume change, and without an anti-locking form in the implicit mode
-    // the volume ratio oscillates by ±0.6% from particle to particle (volumetric locking,
-    // the ν → 0.5 problem). The mean over the free part, which equilibrium fixes, is the
-    // checked quantity.
+    (mean, scatter)
+}
+
+#[test]
+fn implicit_plasticity_follows_the_uniaxial_strain_closed_form() {
+    // Each particle's σ_yy against the closed form at its own J (measured: mean −0.07%,
+    // largest particle 0.64%). The particles' J is not uniform (0.940 to 0.962 over the
+    // free part, σ_yy −7.1 to −11.2 GPa): an earlier note blamed volumetric locking, but
+    // F-bar leaves the same spread and so does an elastic block (ν = 0.29, neo-Hookean),
+    // so the cause is elsewhere (the README's implicit section). With F-bar the in-plane
+    // scaling of F̄ makes F̄_xx ≠ 1, so the uniaxial form holds per particle only to
+    // measured 6.5% (mean −0.41%).
+    let (mean, scatter) = uniaxial_strain_errors("none");
     assert!(
         mean.abs() < 1e-2,
         "mean σ_yy off the closed form by {mean:.2e}"
     );
+    assert!(scatter < 2e-2, "particle error {scatter:.2e}");
+    let (mean, scatter) = uniaxial_strain_errors("fbar");
+    assert!(
+        mean.abs() < 1e-2,
+        "F-bar: mean σ_yy off the closed form by {mean:.2e}"
+    );
+    assert!(scatter < 0.1, "F-bar: particle error {scatter:.2e}");
 }

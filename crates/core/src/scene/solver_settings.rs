@@ -467,12 +467,6 @@ impl Solver {
         }
         if let Mechanics::Implicit(settings) = &self.mechanics {
             settings.validate(v);
-            if self.anti_locking == AntiLocking::Fbar {
-                v.err(
-                    "solver.anti_locking",
-                    "F-bar is not available with implicit mechanics yet (use the explicit or quasi-static mode, or none)",
-                );
-            }
         }
     }
 }

@@ -32,7 +32,10 @@ pub(crate) trait StepMode<const D: usize, K: Kernel>: Send {
 }
 
 /// The mode the scene's `solver.mechanics` asks for.
-pub(super) fn for_scene<const D: usize, K: Kernel>(mechanics: Mechanics) -> Box<dyn StepMode<D, K>>
+pub(super) fn for_scene<const D: usize, K: Kernel>(
+    mechanics: Mechanics,
+    fbar: bool,
+) -> Box<dyn StepMode<D, K>>
 where
     dyn Material: DimensionDispatch<D>,
 {
@@ -48,7 +51,7 @@ where
             tolerance,
             damping,
         }),
-        Mechanics::Implicit(settings) => Box::new(Implicit::<D>::new(settings)),
+        Mechanics::Implicit(settings) => Box::new(Implicit::<D>::new(settings, fbar)),
         Mechanics::Incompressible(settings) => Box::new(Incompressible::new(settings)),
     }
 }

@@ -39,9 +39,12 @@ where
         let grid = Grid::new(min, cells, dx, flip);
 
         let reference = v.reference.as_ref().map(|r| r.start());
-        // F-bar averages this step's volume change, which it reads from the gradient.
-        let needs_gradient = v.materials.values().any(|m| m.needs_velocity_gradient())
-            || s.solver.anti_locking == crate::scene::AntiLocking::Fbar;
+        let fbar = s.solver.anti_locking == crate::scene::AntiLocking::Fbar;
+        let implicit = matches!(s.solver.mechanics, crate::scene::Mechanics::Implicit(_));
+        // Explicit F-bar averages this step's volume change, which it reads from the
+        // gradient.
+        let needs_gradient =
+            v.materials.values().any(|m| m.needs_velocity_gradient()) || (fbar && !implicit);
         let n = v.particle_count();
         let alloc_if = |yes: bool| if yes { n } else { 0 };
         let mut particles = Particles::<D> {
@@ -238,8 +241,8 @@ where
             stresses: StressStats::default(),
             ledger: Default::default(),
             energy0: 0.0,
-            volume_average: (s.solver.anti_locking == crate::scene::AntiLocking::Fbar)
-                .then(|| VolumeAverage::new(grid_nodes)),
+            // The implicit mode averages over its own patches (`implicit/fbar.rs`).
+            volume_average: (fbar && !implicit).then(|| VolumeAverage::new(grid_nodes)),
             physics,
             interpolation: Interpolation::default(),
             needs_interpolation,
@@ -250,7 +253,7 @@ where
             relax_time: None,
             sort_counter: 0,
             contact,
-            mode: Some(super::mode::for_scene(s.solver.mechanics)),
+            mode: Some(super::mode::for_scene(s.solver.mechanics, fbar)),
             _kernel: std::marker::PhantomData,
         }
     }

@@ -14,6 +14,7 @@
 //! follow the cut); after `max_cuts` halvings the run stops with a diagnostic naming the
 //! step, the Newton iteration, the residual and the worst node.
 
+mod fbar;
 mod finish;
 mod newton;
 mod preconditioner;
@@ -39,6 +40,8 @@ const GMRES_RESTART: usize = 40;
 /// The implicit mode with its reusable work space.
 pub(super) struct Implicit<const D: usize> {
     settings: ImplicitSettings,
+    /// F-bar anti-locking over stencil patches (`solver.anti_locking: "fbar"`).
+    fbar: bool,
     work: Workspace<D>,
     vectors: NewtonVectors,
     totals: Totals,
@@ -56,9 +59,10 @@ struct Totals {
 }
 
 impl<const D: usize> Implicit<D> {
-    pub(super) fn new(settings: ImplicitSettings) -> Self {
+    pub(super) fn new(settings: ImplicitSettings, fbar: bool) -> Self {
         Self {
             settings,
+            fbar,
             work: Workspace::default(),
             vectors: NewtonVectors::default(),
             totals: Totals::default(),
@@ -216,6 +220,16 @@ impl<const D: usize> Implicit<D> {
         work.gravity(sim, ramp);
         let held = work.constrain(sim, end, dt);
         work.snapshot(sim);
+        if self.fbar {
+            let mut average = work.fbar.take().unwrap_or_default();
+            average.prepare(
+                &work.interp,
+                &work.entry_dof,
+                &work.volume_n,
+                work.node_of_dof.len(),
+            );
+            work.fbar = Some(average);
+        }
         let n = work.len();
         // Auto is GMRES: away from equilibrium the tangent need not be positive definite
         // (a prestressed body's geometric stiffness), nor symmetric (plasticity, the

@@ -110,6 +110,8 @@ where
         work.values = values;
         return None;
     }
+    let fbar = work.fbar.is_some();
+    let mut patch = std::mem::take(&mut work.patch_gradient);
     let mut block = std::mem::take(&mut work.block);
     block.clear();
     block.resize(stencil * stencil * D * D, 0.0);
@@ -120,11 +122,24 @@ where
         let first = work.interp.node[order[run_start] as usize * stencil];
         let mut run_end = run_start;
         block.fill(0.0);
+        patch.clear();
+        patch.resize(stencil, crate::math::Vector::<D>::zeros());
+        let (mut bulk_volume, mut patch_volume) = (0.0, 0.0);
         while run_end < order.len() && work.interp.node[order[run_end] as usize * stencil] == first
         {
             let p = order[run_end] as usize;
-            let [lambda, mu] = work.moduli[p];
+            let [mut lambda, mu] = work.moduli[p];
             let v = work.volume_n[p];
+            if fbar {
+                // The particle keeps its deviatoric stiffness; the volumetric one, κ = λ +
+                // 2μ/D, acts on the patch's mean dilatation (added below).
+                bulk_volume += v * (lambda + 2.0 * mu / D as f64);
+                patch_volume += v;
+                lambda = -2.0 * mu / D as f64;
+                for (a, g) in patch.iter_mut().enumerate() {
+                    *g += work.interp.gradient[p * stencil + a] * v;
+                }
+            }
             let stress = sim.particles.stress[p];
             let base = p * stencil;
             for a in 0..stencil {
@@ -145,6 +160,20 @@ where
                 }
             }
             run_end += 1;
+        }
+        if fbar && patch_volume > 0.0 {
+            // κ̄ W θ̄²/2 with θ̄ = Σ_p Vₚ ∇wₚ·u / W: the stiffness κ̄ G Gᵀ / W, κ̄ = Σ Vκ / W.
+            let factor = bulk_volume / (patch_volume * patch_volume);
+            for a in 0..stencil {
+                for b in 0..stencil {
+                    for i in 0..D {
+                        for j in 0..D {
+                            block[((a * stencil + b) * D + i) * D + j] +=
+                                factor * patch[a][i] * patch[b][j];
+                        }
+                    }
+                }
+            }
         }
         let base = order[run_start] as usize * stencil;
         mapped.clear();
@@ -173,6 +202,7 @@ where
         run_start = run_end;
     }
     work.order = order;
+    work.patch_gradient = patch;
     work.block = block;
     work.mapped = mapped;
     for i in 0..n {

@@ -153,6 +153,48 @@ where
             ok
         })
         .reduce(|| true, |a, b| a && b)
+        && apply_fbar(sim, work, dt)
+}
+
+/// With F-bar, averages the trial volume changes over the patches and scales each
+/// particle's F (and rate) from A Fₙ to Ā Fₙ = s A Fₙ; true without F-bar.
+fn apply_fbar<const D: usize, K: Kernel>(
+    sim: &mut Simulation<D, K>,
+    work: &mut Workspace<D>,
+    dt: f64,
+) -> bool
+where
+    dyn Material: DimensionDispatch<D>,
+{
+    let Some(average) = work.fbar.as_mut() else {
+        return true;
+    };
+    average.average(&work.grad_du, &work.volume_n);
+    let average = &*average;
+    let identity = Matrix::<D>::identity();
+    let rate = !sim.particles.velocity_gradient.is_empty();
+    let l_out = SharedSlice::new(&mut sim.particles.velocity_gradient);
+    let grad_du = &work.grad_du;
+    sim.particles
+        .deformation_gradient
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(p, f)| {
+            let s = average.scale::<D>(p);
+            *f *= s;
+            if rate {
+                // SAFETY: one particle per iteration.
+                unsafe { *l_out.get(p) = ((identity + grad_du[p]) * s - identity) / dt };
+            }
+        });
+    true
+}
+
+/// The iterate's Ā_p = s_p (I + ∇Δu_p) (A_p without F-bar).
+#[inline]
+fn a_bar<const D: usize>(work: &Workspace<D>, p: usize) -> Matrix<D> {
+    let a = Matrix::<D>::identity() + work.grad_du[p];
+    work.fbar.as_ref().map_or(a, |avg| a * avg.scale::<D>(p))
 }
 
 /// Scatters f_i = Σ_p Vₙ σ cof(I + ∇Δu) ∇w into `out` (unfolded); returns the norm of the
@@ -274,31 +316,30 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
     let rate = !sim.particles.velocity_gradient.is_empty();
     work.grad_v.resize(n, Matrix::<D>::zeros());
     work.step_of.resize(n, 0.0);
+    direction_gradients(work);
     {
         let f_out = SharedSlice::new(&mut sim.particles.deformation_gradient);
         let l_out = SharedSlice::new(&mut sim.particles.velocity_gradient);
-        let g_out = SharedSlice::new(&mut work.grad_v);
         let e_out = SharedSlice::new(&mut work.step_of);
-        let (interp, entry_dof, full_v, f_n, grad_du) = (
-            &work.interp,
-            &work.entry_dof,
-            &work.full_v,
-            &work.f_n,
-            &work.grad_du,
-        );
+        let work = &*work;
+        // The change of Ā along the direction: ∇v, or F-bar's δĀ in `work.direction`.
+        let delta: &[Matrix<D>] = if work.fbar.is_some() {
+            &work.direction
+        } else {
+            &work.grad_v
+        };
         (0..chunk_count(n)).into_par_iter().for_each(|chunk| {
             for p in chunk_range(chunk, n) {
-                let g = nodal_gradient(interp, entry_dof, full_v, p);
+                let g = delta[p];
                 let largest = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
                 let eps = if largest > 0.0 { 1e-7 / largest } else { 0.0 };
-                let a = identity + grad_du[p];
+                let a = a_bar(work, p);
                 // SAFETY: chunks are disjoint particle ranges.
                 unsafe {
-                    *f_out.get(p) = (a + g * eps) * f_n[p];
-                    *g_out.get(p) = g;
+                    *f_out.get(p) = (a + g * eps) * work.f_n[p];
                     *e_out.get(p) = eps;
                     if rate {
-                        *l_out.get(p) = (grad_du[p] + g * eps) / dt;
+                        *l_out.get(p) = (a - identity + g * eps) / dt;
                     }
                 }
             }
@@ -350,6 +391,28 @@ fn finish_product<const D: usize>(
     project(work, out);
 }
 
+/// The direction's gradient ∇v per particle into `work.grad_v` (from the mirrored direction
+/// in `work.full_v`), and the change of Ā along it into `work.direction`: ∇v itself, or
+/// F-bar's δĀ.
+fn direction_gradients<const D: usize>(work: &mut Workspace<D>) {
+    let (interp, entry_dof, full_v) = (&work.interp, &work.entry_dof, &work.full_v);
+    work.grad_v
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(p, g)| *g = nodal_gradient(interp, entry_dof, full_v, p));
+    let n = work.grad_v.len();
+    work.direction.resize(n, Matrix::<D>::zeros());
+    match work.fbar.as_mut() {
+        Some(average) => average.direction(
+            &work.grad_du,
+            &work.grad_v,
+            &work.volume_n,
+            &mut work.direction,
+        ),
+        None => work.direction.copy_from_slice(&work.grad_v),
+    }
+}
+
 /// [`tangent_product`] with the laws' analytic stress derivative: δF = ∇v Fₙ per particle,
 /// dσ from the laws at the iterate, no stress update. The direction is mirrored in
 /// `work.full_v`.
@@ -367,18 +430,12 @@ fn tangent_product_analytic<const D: usize, K: Kernel>(
     work.grad_v.resize(n, Matrix::<D>::zeros());
     work.direction.resize(n, Matrix::<D>::zeros());
     work.stress_change.resize(n, Matrix::<D>::zeros());
-    {
-        let (interp, entry_dof, full_v, f_n) =
-            (&work.interp, &work.entry_dof, &work.full_v, &work.f_n);
-        work.grad_v
-            .par_iter_mut()
-            .zip(work.direction.par_iter_mut())
-            .enumerate()
-            .for_each(|(p, (g, direction))| {
-                *g = nodal_gradient(interp, entry_dof, full_v, p);
-                *direction = *g * f_n[p];
-            });
-    }
+    direction_gradients(work);
+    let f_n = &work.f_n;
+    work.direction
+        .par_iter_mut()
+        .zip(f_n.par_iter())
+        .for_each(|(direction, f)| *direction *= f);
     stress_derivative(
         &sim.particles,
         &work.state_n,
@@ -488,14 +545,15 @@ pub(super) fn probe_moduli<const D: usize, K: Kernel>(
     shear[(0, 1)] = 1.0;
     shear[(1, 0)] = 1.0;
     const EPS: f64 = 1e-7;
+    let floor = shear_floor(work.fbar.is_some());
     work.moduli.resize(n, [0.0; 2]);
     for (probe, g) in [identity, shear].into_iter().enumerate() {
         let rate = !sim.particles.velocity_gradient.is_empty();
         for p in 0..n {
-            let a = identity + work.grad_du[p];
+            let a = a_bar(work, p);
             sim.particles.deformation_gradient[p] = (a + g * EPS) * work.f_n[p];
             if rate {
-                sim.particles.velocity_gradient[p] = (work.grad_du[p] + g * EPS) / dt;
+                sim.particles.velocity_gradient[p] = (a - identity + g * EPS) / dt;
             }
         }
         work.restore_state(sim);
@@ -506,9 +564,9 @@ pub(super) fn probe_moduli<const D: usize, K: Kernel>(
                 // δσ = (Dλ + 2μ) ε I
                 work.moduli[p][0] = d[(0, 0)];
             } else {
-                // δσ₀₁ = 2μ ε; a shear stiffness of at least 1% of the volumetric one keeps
-                // the estimate factorable where a law has next to none (a liquid).
-                let mu = (0.5 * d[(0, 1)]).max(0.01 * work.moduli[p][0].max(0.0));
+                // δσ₀₁ = 2μ ε; a shear stiffness of at least a small share of the volumetric
+                // one keeps the estimate factorable where a law has next to none (a liquid).
+                let mu = (0.5 * d[(0, 1)]).max(floor * work.moduli[p][0].max(0.0));
                 let lambda = ((work.moduli[p][0] - 2.0 * mu) / D as f64).max(-2.0 * mu / D as f64);
                 work.moduli[p] = [lambda, mu];
             }
@@ -517,10 +575,25 @@ pub(super) fn probe_moduli<const D: usize, K: Kernel>(
     // Back to the iterate (the material state is restored before every later update).
     let rate = !sim.particles.velocity_gradient.is_empty();
     for p in 0..n {
-        sim.particles.deformation_gradient[p] = (identity + work.grad_du[p]) * work.f_n[p];
+        let a = a_bar(work, p);
+        sim.particles.deformation_gradient[p] = a * work.f_n[p];
         sim.particles.stress[p] = work.stress_cur[p];
         if rate {
-            sim.particles.velocity_gradient[p] = work.grad_du[p] / dt;
+            sim.particles.velocity_gradient[p] = (a - identity) / dt;
         }
     }
+}
+
+/// The least shear stiffness the preconditioner's estimate gives a particle, as a share of
+/// its volumetric stiffness Dλ + 2μ: 1% without F-bar; with F-bar the volumetric part acts
+/// on patch means, so the estimate stays factorable with far less (overridable for
+/// experiments with `MPM_SHEAR_FLOOR`).
+fn shear_floor(fbar: bool) -> f64 {
+    if let Some(v) = std::env::var("MPM_SHEAR_FLOOR")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        return v;
+    }
+    if fbar { 1e-4 } else { 0.01 }
 }

@@ -99,6 +99,8 @@ pub(super) struct Workspace<const D: usize> {
     /// (the preconditioner's assembly).
     pub order: Vec<u32>,
     pub block: Vec<f64>,
+    /// Σ_p Vₚ ∇wₚ of one patch, per stencil entry (F-bar's volumetric block).
+    pub patch_gradient: Vec<crate::math::Vector<D>>,
     /// The unknowns and factors of each stencil entry's components in one block (reused).
     pub mapped: Vec<[(usize, f64); 2]>,
     /// Matrix entries of the preconditioner's assembly (reused).
@@ -160,6 +162,8 @@ pub(super) struct Workspace<const D: usize> {
     pub direction: Vec<Matrix<D>>,
     pub stress_change: Vec<Matrix<D>>,
     pub derivative_scratch: crate::solver::stress_derivative::DerivativeScratch<D>,
+    /// F-bar's patches and averaged volume changes (only with `solver.anti_locking: fbar`).
+    pub fbar: Option<super::fbar::PatchAverage>,
 }
 
 impl<const D: usize> Workspace<D> {
