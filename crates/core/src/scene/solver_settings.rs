@@ -356,7 +356,8 @@ pub enum AntiLocking {
     /// Each particle keeps its own volume change.
     #[default]
     None,
-    /// F-bar: the volume change is averaged over the neighbouring grid nodes.
+    /// F-bar: the volume change is averaged over the neighbouring grid nodes (explicit and
+    /// quasi-static modes) or over the particles sharing a stencil (implicit mode).
     Fbar,
 }
 
