@@ -1,10 +1,18 @@
 //! `phase_mixture`: a material whose stress moves from a viscous fluid to an elastic solid
 //! as its solid fraction (from the phase-change physics) rises.
 //!
-//! σ = σ_solid + (1 − f)·(2η·dev D + K_l·ln J·I). The solid part is incremental
+//! σ = σ_solid + (1 − f)·(2η·dev D + q·I). The solid part is incremental
 //! (hypoelastic, Jaumann-rotated): each step adds f·(λ tr Δε I + 2μ Δε), so a particle that
 //! solidifies carries no stress until it deforms after solidifying, and only strain after
 //! gelation loads a curing resin. The laws see the mechanical F (free strains removed).
+//!
+//! The liquid's mean stress q is K_l·ln J of the whole volume change, or, with
+//! `liquid.pressure_relaxation_time` τ, a Maxwell pressure that relaxes over τ (the flow
+//! that drains or fills a gap is far faster than a cure step, and no static step resolves
+//! it): q_{n+1} = a q_n + b K_l (ln J_{n+1} − ln J_n) with a = e^{−dt/τ} and
+//! b = (τ/dt)(1 − a), exact for a constant volume rate over the step. For dt ≪ τ it is the
+//! elastic K_l ln J; for dt ≫ τ a bulk viscosity K_l τ, and the liquid keeps next to no
+//! pressure from one static step to the next.
 
 use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, TangentBatch,
@@ -46,6 +54,10 @@ pub struct LiquidPhase {
     pub viscosity: f64,
     /// Bulk modulus, Pa.
     pub bulk_modulus: f64,
+    /// Seconds over which the liquid's pressure relaxes (see the module documentation);
+    /// absent: no relaxation, the pressure is K_l ln J of the whole volume change.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pressure_relaxation_time: Option<f64>,
 }
 
 impl PhaseMixtureParameters {
@@ -73,7 +85,34 @@ impl PhaseMixtureParameters {
                 ));
             }
         }
+        if let Some(tau) = self.liquid.pressure_relaxation_time
+            && !(tau.is_finite() && tau > 0.0)
+        {
+            issues.push(Issue::new(
+                format!("{path}.liquid.pressure_relaxation_time"),
+                format!("must be a finite number > 0 seconds (got {tau})"),
+            ));
+        }
         issues
+    }
+}
+
+/// The Maxwell factors (a, b) of the liquid pressure over a step `dt` with relaxation time
+/// `tau` (see the module documentation); (1, 1) without relaxation or for dt = 0.
+fn relaxation(tau: Option<f64>, dt: f64) -> (f64, f64) {
+    match tau {
+        Some(tau) if dt > 0.0 => {
+            let x = dt / tau;
+            let a = (-x).exp();
+            // (1 − e^{−x})/x, with its series where x is too small for the quotient.
+            let b = if x < 1e-8 {
+                1.0 - 0.5 * x
+            } else {
+                -(-x).exp_m1() / x
+            };
+            (a, b)
+        }
+        _ => (1.0, 1.0),
     }
 }
 
@@ -102,7 +141,9 @@ pub struct PhaseMixture {
     params: PhaseMixtureParameters,
     lambda: f64,
     mu: f64,
-    fields: [FieldSpec; 2],
+    fields: [FieldSpec; 3],
+    /// Fields in use: the third (the liquid's relaxing pressure) only with relaxation.
+    field_count: usize,
 }
 
 impl PhaseMixture {
@@ -124,7 +165,17 @@ impl PhaseMixture {
                     components: 9,
                     initial: FieldInit::Zero,
                 },
+                FieldSpec {
+                    name: "liquid_pressure",
+                    components: 1,
+                    initial: FieldInit::Zero,
+                },
             ],
+            field_count: if params.liquid.pressure_relaxation_time.is_some() {
+                3
+            } else {
+                2
+            },
         }
     }
 }
@@ -135,7 +186,7 @@ impl ConstitutiveLaw for PhaseMixture {
     }
 
     fn state_fields(&self) -> &[FieldSpec] {
-        &self.fields
+        &self.fields[..self.field_count]
     }
 
     fn shared_reads(&self) -> &[SharedRead] {
@@ -146,13 +197,15 @@ impl ConstitutiveLaw for PhaseMixture {
     }
 
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
-        let [previous, solid, ..] = batch.state.fields;
+        let [previous, solid, pressure, ..] = batch.state.fields;
         let fraction = batch.shared[0];
         let (lambda, mu) = (self.lambda, self.mu);
         let (eta, bulk) = (
             self.params.liquid.viscosity,
             self.params.liquid.bulk_modulus,
         );
+        let tau = self.params.liquid.pressure_relaxation_time;
+        let (decay, gain) = relaxation(tau, batch.dt);
         let identity = Matrix::<D>::identity();
         let mut energy = 0.0;
         let mut stiffest = 0.0f64;
@@ -171,19 +224,31 @@ impl ConstitutiveLaw for PhaseMixture {
             s += spin * s - s * spin;
             s += (identity * (lambda * strain.trace()) + strain * (2.0 * mu)) * phi;
             store(&mut solid[9 * k..9 * k + 9], &s);
+            let ln_j = determinant(f).max(1e-300).ln();
+            let mean = if tau.is_some() {
+                let ln_j_prev = determinant(&f_prev).max(1e-300).ln();
+                let q = decay * pressure[k] + gain * bulk * (ln_j - ln_j_prev);
+                pressure[k] = q;
+                q
+            } else {
+                bulk * ln_j
+            };
             store(&mut previous[9 * k..9 * k + 9], f);
-            let j = determinant(f);
             let rate = if batch.dt > 0.0 {
                 strain / batch.dt
             } else {
                 Matrix::<D>::zeros()
             };
             let deviatoric_rate = rate - identity * (rate.trace() / 3.0);
-            let ln_j = j.max(1e-300).ln();
-            let fluid = deviatoric_rate * (2.0 * eta) + identity * (bulk * ln_j);
+            let fluid = deviatoric_rate * (2.0 * eta) + identity * mean;
             *stress = s + fluid * (1.0 - phi);
-            energy += batch.volume0[k]
-                * (s.norm_squared() / (4.0 * mu) + 0.5 * (1.0 - phi) * bulk * ln_j * ln_j);
+            let liquid_energy = if bulk > 0.0 {
+                0.5 * mean * mean / bulk
+            } else {
+                0.0
+            };
+            energy +=
+                batch.volume0[k] * (s.norm_squared() / (4.0 * mu) + (1.0 - phi) * liquid_energy);
             stiffest = stiffest.max(phi * (lambda + 2.0 * mu) + (1.0 - phi) * bulk);
         }
         BatchStats {
@@ -198,9 +263,10 @@ impl ConstitutiveLaw for PhaseMixture {
 
     /// The derivative of the update from the step's starting state (F₀ = `previous_F`,
     /// s₀ = `solid_stress`): with δL = δF F₀⁻¹, δε = sym δL and δω = skew δL,
-    /// δσ = δω s₀ − s₀ δω + φ (λ tr δε I + 2μ δε) + (1 − φ)(2η dev δε / dt + K tr(F⁻¹δF) I).
-    /// Exact, and a product costs no stress update (the differences it replaces were
-    /// accurate enough: the same Newton and Krylov counts on the cure example).
+    /// δσ = δω s₀ − s₀ δω + φ (λ tr δε I + 2μ δε) + (1 − φ)(2η dev δε / dt + b K tr(F⁻¹δF) I)
+    /// (b = 1 without pressure relaxation). Exact, and a product costs no stress update (the
+    /// differences it replaces were accurate enough: the same Newton and Krylov counts on
+    /// the cure example).
     fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
         let [previous, solid, ..] = batch.state.fields;
         let fraction = batch.shared[0];
@@ -209,6 +275,7 @@ impl ConstitutiveLaw for PhaseMixture {
             self.params.liquid.viscosity,
             self.params.liquid.bulk_modulus,
         );
+        let (_, gain) = relaxation(self.params.liquid.pressure_relaxation_time, batch.dt);
         let identity = Matrix::<D>::identity();
         for (k, ((f, df), out)) in batch
             .deformation_gradient
@@ -239,7 +306,7 @@ impl ConstitutiveLaw for PhaseMixture {
                 Matrix::<D>::zeros()
             };
             let d_deviatoric = d_rate - identity * (d_rate.trace() / 3.0);
-            let d_fluid = d_deviatoric * (2.0 * eta) + identity * (bulk * d_ln_j);
+            let d_fluid = d_deviatoric * (2.0 * eta) + identity * (gain * bulk * d_ln_j);
             *out = d_solid + d_fluid * (1.0 - phi);
         }
     }

@@ -105,6 +105,7 @@ fn glass_transition_spans_its_limits() {
 /// The mixture's analytic stress derivative after a step from a prestressed state, against
 /// central differences of its own update from that state; relative error.
 fn mixture_tangent_error<const D: usize>(
+    tau: Option<f64>,
     phi: f64,
     f_prev: mpm_core::math::Matrix<D>,
     f: mpm_core::math::Matrix<D>,
@@ -124,10 +125,12 @@ fn mixture_tangent_error<const D: usize>(
         liquid: LiquidPhase {
             viscosity: 10.0,
             bulk_modulus: 2e9,
+            pressure_relaxation_time: tau,
         },
     });
     let dt = 30.0;
     let fraction = [phi];
+    let pressure = vec![3e5];
     // The state a step starts from: F₀ and a solid stress already carried.
     let mut previous = vec![0.0; 9];
     let mut solid = vec![0.0; 9];
@@ -138,11 +141,14 @@ fn mixture_tangent_error<const D: usize>(
         }
     }
     let stress_at = |g: Matrix<D>| {
-        let (mut p, mut s) = (previous.clone(), solid.clone());
+        let (mut p, mut s, mut q) = (previous.clone(), solid.clone(), pressure.clone());
         let mut stress = [Matrix::<D>::zeros()];
         let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
         fields[0] = &mut p;
         fields[1] = &mut s;
+        if tau.is_some() {
+            fields[2] = &mut q;
+        }
         law.update_stress(StressBatch {
             dt,
             deformation_gradient: &[g],
@@ -161,6 +167,9 @@ fn mixture_tangent_error<const D: usize>(
     let mut fields: [&[f64]; MAX_STATE_FIELDS] = [&[]; MAX_STATE_FIELDS];
     fields[0] = &previous;
     fields[1] = &solid;
+    if tau.is_some() {
+        fields[2] = &pressure;
+    }
     let mut analytic = [Matrix::<D>::zeros()];
     law.stress_derivative(TangentBatch {
         dt,
@@ -185,11 +194,95 @@ fn mixture_tangent_matches_differences_of_the_update() {
     let f_prev2 = Matrix::<2>::new(1.01, 0.02, -0.01, 0.99);
     let f2 = Matrix::<2>::new(1.02, 0.05, -0.02, 0.97);
     let d2 = Matrix::<2>::new(-0.2, 0.3, 0.1, 0.4);
-    for phi in [0.0, 0.5, 1.0] {
-        let e3 = mixture_tangent_error(phi, f_prev3, f3, d3);
-        let e2 = mixture_tangent_error(phi, f_prev2, f2, d2);
-        // Central differences of a smooth update at h = 1e-6: about 1e-9 relative.
-        assert!(e3 < 1e-6, "3D, solid fraction {phi}: relative error {e3}");
-        assert!(e2 < 1e-6, "2D, solid fraction {phi}: relative error {e2}");
+    for tau in [None, Some(1e-3), Some(30.0)] {
+        for phi in [0.0, 0.5, 1.0] {
+            let e3 = mixture_tangent_error(tau, phi, f_prev3, f3, d3);
+            let e2 = mixture_tangent_error(tau, phi, f_prev2, f2, d2);
+            // Central differences of a smooth update at h = 1e-6: about 1e-9 relative.
+            assert!(
+                e3 < 1e-6,
+                "3D, τ {tau:?}, solid fraction {phi}: relative error {e3}"
+            );
+            assert!(
+                e2 < 1e-6,
+                "2D, τ {tau:?}, solid fraction {phi}: relative error {e2}"
+            );
+        }
     }
+}
+
+/// The liquid's relaxing pressure (`liquid.pressure_relaxation_time` τ) against the
+/// Maxwell solution: a step of dt = τ that expands a liquid particle by ln J gives
+/// q = K ln J (1 − e^{−1}); held at that volume for another τ, q falls by e^{−1}. Without
+/// relaxation q = K ln J, and with τ ≫ dt the same to first order in dt/τ.
+#[test]
+fn relaxing_liquid_pressure_follows_the_maxwell_solution() {
+    use crate::mixture::{LiquidPhase, PhaseMixture, PhaseMixtureParameters, SolidPhase};
+    use mpm_core::material::{ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StressBatch};
+    use mpm_core::math::Matrix;
+    let bulk = 2e9;
+    let law = |tau: Option<f64>| {
+        PhaseMixture::new(PhaseMixtureParameters {
+            density: 1600.0,
+            solid: SolidPhase {
+                youngs_modulus: 8e9,
+                poisson_ratio: 0.3,
+            },
+            liquid: LiquidPhase {
+                viscosity: 10.0,
+                bulk_modulus: bulk,
+                pressure_relaxation_time: tau,
+            },
+        })
+    };
+    let f = Matrix::<2>::new(1.001, 0.0, 0.0, 1.0);
+    let ln_j = 1.001f64.ln();
+    // Two steps of `dt` (expand, then hold); the liquid mean stress after each.
+    let run = |tau: Option<f64>, dt: f64| -> [f64; 2] {
+        let law = law(tau);
+        let mut previous = vec![0.0; 9];
+        previous[0] = 1.0;
+        previous[3] = 1.0;
+        let (mut solid, mut q) = (vec![0.0; 9], vec![0.0]);
+        let mut out = [0.0; 2];
+        for o in &mut out {
+            let mut stress = [Matrix::<2>::zeros()];
+            let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
+            fields[0] = &mut previous;
+            fields[1] = &mut solid;
+            if tau.is_some() {
+                fields[2] = &mut q;
+            }
+            law.update_stress(StressBatch {
+                dt,
+                deformation_gradient: &[f],
+                velocity_gradient: &[],
+                volume0: &[1.0],
+                stress: &mut stress,
+                state: StateSlices { fields },
+                shared: [&[0.0][..], &[], &[], &[]],
+                plastic_work: &mut [],
+            });
+            // The viscous part adds 2η tr D/3 (the in-plane share of a plane-strain
+            // deviator), about 2e-4 Pa here against the pressure's 2e6: below the bounds.
+            *o = stress[0].trace() / 2.0;
+        }
+        out
+    };
+    let [q1, q2] = run(Some(30.0), 30.0);
+    let e = (-1.0f64).exp();
+    let expected = bulk * ln_j * (1.0 - e);
+    assert!(
+        (q1 / expected - 1.0).abs() < 1e-9,
+        "{q1} against {expected}"
+    );
+    assert!(
+        (q2 / (expected * e) - 1.0).abs() < 1e-9,
+        "{q2} against {}",
+        expected * e
+    );
+    let [p1, p2] = run(None, 30.0);
+    assert!((p1 / (bulk * ln_j) - 1.0).abs() < 1e-9 && (p2 - p1).abs() < 1e-9 * p1);
+    let [s1, _] = run(Some(3e6), 30.0);
+    assert!((s1 / (bulk * ln_j) - 1.0).abs() < 1e-5, "{s1}");
 }

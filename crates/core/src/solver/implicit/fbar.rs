@@ -1,7 +1,9 @@
 //! F-bar anti-locking for the implicit mode (`solver.anti_locking: "fbar"`), after de Souza
-//! Neto, Perić, Dutko & Owen (1996). Particles whose stencils start at the same grid node
-//! share every node of their stencils: a *patch* (with 2 particles per cell and direction,
-//! the 2^D particles of one cell-sized box). Within a patch, each particle's volume change of
+//! Neto, Perić, Dutko & Owen (1996). Particles of one material whose stencils start at the
+//! same grid node share every node of their stencils: a *patch* (with 2 particles per cell
+//! and direction, the 2^D particles of one cell-sized box). A patch never mixes materials:
+//! averaging a die's volume change with its underfill's would stiffen the one and soften the
+//! other at every interface. Within a patch, each particle's volume change of
 //! the step, J_p = det A_p with A_p = I + ∇Δu_p, is replaced by the patch's volume-weighted
 //! mean J̄ = Σ_q Vₙ_q J_q / Σ_q Vₙ_q: the law sees F̄_p = (J̄/J_p)^(1/D) A_p Fₙ. That leaves
 //! one volume constraint per patch (about one per node) instead of one per particle, so a
@@ -24,9 +26,10 @@ use rayon::prelude::*;
 /// per step and reused (nothing is allocated per iteration once the sizes are reached).
 #[derive(Default)]
 pub(super) struct PatchAverage {
-    /// Each particle's patch: the unknown of its stencil's first node.
+    /// Each particle's patch: (the unknown of its stencil's first node) × groups + its
+    /// material group.
     patch: Vec<u32>,
-    /// Σ Vₙ per patch (indexed by unknown).
+    /// Σ Vₙ per patch.
     weight: Vec<f64>,
     /// Per-patch sums (scratch).
     sum: Vec<f64>,
@@ -39,31 +42,44 @@ pub(super) struct PatchAverage {
 
 impl PatchAverage {
     /// Sets the patches of this step's stencils; `unknowns` is the number of grid nodes with
-    /// unknowns, `volume` the particles' volume at the start of the step.
+    /// unknowns, `volume` the particles' volume at the start of the step, `groups` the
+    /// particle ranges of the material groups (covering every particle, in order).
     pub(super) fn prepare<const D: usize>(
         &mut self,
         interp: &Interpolation<D>,
         entry_dof: &[u32],
         volume: &[f64],
         unknowns: usize,
+        groups: impl ExactSizeIterator<Item = std::ops::Range<usize>>,
     ) {
-        let n = volume.len();
+        let count = groups.len().max(1);
         self.patch.clear();
-        self.patch
-            .extend((0..n).map(|p| entry_dof[p * interp.stencil]));
+        for (g, range) in groups.enumerate() {
+            self.patch
+                .extend(range.map(|p| entry_dof[p * interp.stencil] * count as u32 + g as u32));
+        }
+        let n = volume.len();
+        debug_assert_eq!(self.patch.len(), n);
+        let patches = unknowns * count;
         self.weight.clear();
-        self.weight.resize(unknowns, 0.0);
+        self.weight.resize(patches, 0.0);
         for (&k, &v) in self.patch.iter().zip(volume) {
             self.weight[k as usize] += v;
         }
         self.sum.clear();
-        self.sum.resize(unknowns, 0.0);
+        self.sum.resize(patches, 0.0);
         self.local.clear();
         self.local.resize(n, 1.0);
         self.bar.clear();
         self.bar.resize(n, 1.0);
         self.change.clear();
         self.change.resize(n, 0.0);
+    }
+
+    /// The patch of particle `p` (the preconditioner groups its volumetric block by it).
+    #[inline]
+    pub(super) fn patch(&self, p: usize) -> u32 {
+        self.patch[p]
     }
 
     /// Averages the volume changes of the increment gradients `grad` over the patches.
@@ -177,7 +193,7 @@ mod tests {
             Matrix::<2>::new(0.03, 0.0, 0.0, -0.01),
         ];
         let mut avg = PatchAverage::default();
-        avg.prepare(&interp, &entry_dof, &volume, 2);
+        avg.prepare(&interp, &entry_dof, &volume, 2, [0..3].into_iter());
         avg.average(&grad, &volume);
         let j: Vec<f64> = grad
             .iter()
@@ -186,6 +202,11 @@ mod tests {
         let pair = (j[0] + 3.0 * j[1]) / 4.0;
         assert!((avg.bar[0] - pair).abs() < 1e-15 && (avg.bar[1] - pair).abs() < 1e-15);
         assert!((avg.scale::<2>(2) - 1.0).abs() < 1e-15);
+        // Split the pair into two materials: each keeps its own J.
+        let mut split = PatchAverage::default();
+        split.prepare(&interp, &entry_dof, &volume, 2, [0..1, 1..3].into_iter());
+        split.average(&grad, &volume);
+        assert!((split.bar[0] - j[0]).abs() < 1e-15 && (split.bar[1] - j[1]).abs() < 1e-15);
         let dgrad = [
             Matrix::<2>::new(0.3, -0.1, 0.2, 0.5),
             Matrix::<2>::new(-0.4, 0.2, 0.1, 0.3),
@@ -201,7 +222,7 @@ mod tests {
                 .map(|(g, d)| g + d * (sign * h))
                 .collect();
             let mut a = PatchAverage::default();
-            a.prepare(&interp, &entry_dof, &volume, 2);
+            a.prepare(&interp, &entry_dof, &volume, 2, [0..3].into_iter());
             a.average(&g, &volume);
             (0..3)
                 .map(|p| (Matrix::<2>::identity() + g[p]) * a.scale::<2>(p))

@@ -227,6 +227,7 @@ impl<const D: usize> Implicit<D> {
                 &work.entry_dof,
                 &work.volume_n,
                 work.node_of_dof.len(),
+                sim.particles.groups.iter().map(|g| g.range.clone()),
             );
             work.fbar = Some(average);
         }

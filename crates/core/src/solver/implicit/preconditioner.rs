@@ -97,7 +97,11 @@ where
     let mut order = std::mem::take(&mut work.order);
     order.clear();
     order.extend(0..sim.particles.len() as u32);
-    order.sort_unstable_by_key(|&p| work.interp.node[p as usize * stencil]);
+    match &work.fbar {
+        // Patches are (first node's unknown, material): contiguous within a node's run.
+        Some(average) => order.sort_unstable_by_key(|&p| average.patch(p as usize)),
+        None => order.sort_unstable_by_key(|&p| work.interp.node[p as usize * stencil]),
+    }
     let runs = 1 + order
         .windows(2)
         .filter(|w| {
@@ -125,12 +129,19 @@ where
         patch.clear();
         patch.resize(stencil, crate::math::Vector::<D>::zeros());
         let (mut bulk_volume, mut patch_volume) = (0.0, 0.0);
+        let mut current = None;
         while run_end < order.len() && work.interp.node[order[run_end] as usize * stencil] == first
         {
             let p = order[run_end] as usize;
             let [mut lambda, mu] = work.moduli[p];
             let v = work.volume_n[p];
-            if fbar {
+            if let Some(average) = &work.fbar {
+                let patch_of_p = average.patch(p);
+                if current.is_some_and(|c| c != patch_of_p) {
+                    add_patch_block(&mut block, &mut patch, bulk_volume, patch_volume);
+                    (bulk_volume, patch_volume) = (0.0, 0.0);
+                }
+                current = Some(patch_of_p);
                 // The particle keeps its deviatoric stiffness; the volumetric one, κ = λ +
                 // 2μ/D, acts on the patch's mean dilatation (added below).
                 bulk_volume += v * (lambda + 2.0 * mu / D as f64);
@@ -161,19 +172,8 @@ where
             }
             run_end += 1;
         }
-        if fbar && patch_volume > 0.0 {
-            // κ̄ W θ̄²/2 with θ̄ = Σ_p Vₚ ∇wₚ·u / W: the stiffness κ̄ G Gᵀ / W, κ̄ = Σ Vκ / W.
-            let factor = bulk_volume / (patch_volume * patch_volume);
-            for a in 0..stencil {
-                for b in 0..stencil {
-                    for i in 0..D {
-                        for j in 0..D {
-                            block[((a * stencil + b) * D + i) * D + j] +=
-                                factor * patch[a][i] * patch[b][j];
-                        }
-                    }
-                }
-            }
+        if fbar {
+            add_patch_block(&mut block, &mut patch, bulk_volume, patch_volume);
         }
         let base = order[run_start] as usize * stencil;
         mapped.clear();
@@ -225,4 +225,30 @@ where
     work.pairs = pairs;
     work.values = values;
     result
+}
+
+/// Adds one F-bar patch's volumetric stiffness to a run's element block and clears the
+/// patch's gradient sums: κ̄ W θ̄²/2 with θ̄ = Σ_p Vₚ ∇wₚ·u / W is the stiffness κ̄ G Gᵀ / W,
+/// G = Σ_p Vₚ ∇wₚ (`patch`), κ̄ = Σ Vκ / W (`bulk_volume` = Σ Vκ, `patch_volume` = W).
+fn add_patch_block<const D: usize>(
+    block: &mut [f64],
+    patch: &mut [crate::math::Vector<D>],
+    bulk_volume: f64,
+    patch_volume: f64,
+) {
+    let stencil = patch.len();
+    if patch_volume > 0.0 {
+        let factor = bulk_volume / (patch_volume * patch_volume);
+        for a in 0..stencil {
+            for b in 0..stencil {
+                for i in 0..D {
+                    for j in 0..D {
+                        block[((a * stencil + b) * D + i) * D + j] +=
+                            factor * patch[a][i] * patch[b][j];
+                    }
+                }
+            }
+        }
+    }
+    patch.fill(crate::math::Vector::<D>::zeros());
 }
