@@ -193,7 +193,7 @@ mod tests {
             Matrix::<2>::new(0.03, 0.0, 0.0, -0.01),
         ];
         let mut avg = PatchAverage::default();
-        avg.prepare(&interp, &entry_dof, &volume, 2, [0..3].into_iter());
+        avg.prepare(&interp, &entry_dof, &volume, 2, std::iter::once(0..3));
         avg.average(&grad, &volume);
         let j: Vec<f64> = grad
             .iter()
@@ -222,7 +222,7 @@ mod tests {
                 .map(|(g, d)| g + d * (sign * h))
                 .collect();
             let mut a = PatchAverage::default();
-            a.prepare(&interp, &entry_dof, &volume, 2, [0..3].into_iter());
+            a.prepare(&interp, &entry_dof, &volume, 2, std::iter::once(0..3));
             a.average(&g, &volume);
             (0..3)
                 .map(|p| (Matrix::<2>::identity() + g[p]) * a.scale::<2>(p))
