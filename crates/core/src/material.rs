@@ -168,6 +168,14 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn liquid_viscosity(&self) -> Option<f64> {
         None
     }
+    /// With `solver.free_strain_2d: "plane_strain"`, the factor by which a 2D scene's
+    /// isotropic free strain (thermal expansion, cure shrinkage) acts in the plane, standing
+    /// in for the out-of-plane part the held third direction turns into in-plane stress:
+    /// 1 + ν for an isotropic elastic solid (the plane-strain expansion (1 + ν)α of the
+    /// textbooks). The default 1 leaves the free strain in the plane only.
+    fn plane_strain_expansion(&self) -> f64 {
+        1.0
+    }
 }
 
 /// Object-safe form of [`ConstitutiveLaw`]; implemented for every law, used by the solver.
@@ -194,6 +202,8 @@ pub trait Material: Send + Sync {
     fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>);
     /// See [`ConstitutiveLaw::liquid_viscosity`].
     fn liquid_viscosity(&self) -> Option<f64>;
+    /// See [`ConstitutiveLaw::plane_strain_expansion`].
+    fn plane_strain_expansion(&self) -> f64;
 }
 
 impl<T: ConstitutiveLaw> Material for T {
@@ -229,6 +239,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn liquid_viscosity(&self) -> Option<f64> {
         ConstitutiveLaw::liquid_viscosity(self)
+    }
+    fn plane_strain_expansion(&self) -> f64 {
+        ConstitutiveLaw::plane_strain_expansion(self)
     }
 }
 

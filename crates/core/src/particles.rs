@@ -16,6 +16,9 @@ pub struct MaterialGroup {
     pub material: Arc<dyn Material>,
     /// Particle indices of this group.
     pub range: Range<usize>,
+    /// The factor the stress update applies to the free strain in the plane (1, or the
+    /// law's plane-strain expansion with `solver.free_strain_2d: "plane_strain"`).
+    pub free_strain_factor: f64,
     /// The law's declared state fields for this group's particles, one `Vec` per field
     /// (`components` numbers per particle).
     pub state: Vec<Vec<f64>>,

@@ -27,6 +27,11 @@ impl ConstitutiveLaw for FixedCorotated {
         self.params.density
     }
 
+    /// 1 + ν: the plane-strain expansion of an isotropic elastic solid.
+    fn plane_strain_expansion(&self) -> f64 {
+        1.0 + self.params.poisson_ratio
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let identity = Matrix::<D>::identity();
         let (lambda, mu) = (self.lambda, self.mu);

@@ -132,6 +132,11 @@ impl ConstitutiveLaw for JohnsonCook {
         self.params.density
     }
 
+    /// 1 + ν: the plane-strain expansion of an isotropic elastic solid.
+    fn plane_strain_expansion(&self) -> f64 {
+        1.0 + self.params.poisson_ratio
+    }
+
     fn state_fields(&self) -> &[FieldSpec] {
         &self.fields
     }

@@ -185,6 +185,12 @@ impl ConstitutiveLaw for PhaseMixture {
         self.params.density
     }
 
+    /// 1 + ν of the solid: the liquid carries (next to) no stress from free strain once
+    /// its pressure relaxes, and after the gel the solid does.
+    fn plane_strain_expansion(&self) -> f64 {
+        1.0 + self.params.solid.poisson_ratio
+    }
+
     fn state_fields(&self) -> &[FieldSpec] {
         &self.fields[..self.field_count]
     }

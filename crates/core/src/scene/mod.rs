@@ -27,8 +27,8 @@ pub use domain::{Contact, Domain, Side, Wall};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, Output, StopCriteria};
 pub use solver_settings::{
-    AntiLocking, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName, KrylovMethod,
-    Mechanics, Scheme, Solver, TangentMethod, Transfer,
+    AntiLocking, FreeStrain2d, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName,
+    KrylovMethod, Mechanics, Scheme, Solver, TangentMethod, Transfer,
 };
 pub use stages::{FIXED_ACROSS_STAGES, RemoveParticles, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{

@@ -85,6 +85,11 @@ pub struct Solver {
     /// Volumetric anti-locking for near-incompressible materials.
     #[serde(default, skip_serializing_if = "AntiLocking::is_none")]
     pub anti_locking: AntiLocking,
+    /// How a 2D scene's free strain (thermal expansion, cure shrinkage) acts: in the plane
+    /// only (the default), or as in plane strain, where the held third direction turns the
+    /// out-of-plane part into in-plane stress.
+    #[serde(default, skip_serializing_if = "FreeStrain2d::is_in_plane")]
+    pub free_strain_2d: FreeStrain2d,
     /// How mechanics advances: explicit dynamics (the default), not at all (physics only,
     /// particles stay put), or quasi-statically (relaxed to equilibrium every step).
     #[serde(default, skip_serializing_if = "Mechanics::is_dynamic")]
@@ -349,6 +354,27 @@ fn default_relax_tolerance() -> f64 {
     1e-6
 }
 
+/// How a 2D scene's isotropic free strain acts on the stress.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FreeStrain2d {
+    /// In the plane only: the laws see F / (1 + e) in the plane and no out-of-plane strain
+    /// (in-plane thermal stresses about 1/(1 + ν) of physical plane strain).
+    #[default]
+    InPlane,
+    /// Physical plane strain: the in-plane free strain is scaled by each law's
+    /// `plane_strain_expansion` (1 + ν for isotropic elastic solids), exact for small
+    /// strains of isotropic linear elasticity.
+    PlaneStrain,
+}
+
+impl FreeStrain2d {
+    /// Whether it is the default.
+    pub fn is_in_plane(&self) -> bool {
+        *self == Self::InPlane
+    }
+}
+
 /// Volumetric anti-locking options.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -420,6 +446,12 @@ impl Solver {
         }
         if let Some(dt) = self.dt {
             v.positive("solver.dt", dt);
+        }
+        if self.free_strain_2d == FreeStrain2d::PlaneStrain && v.dim != 2 {
+            v.err(
+                "solver.free_strain_2d",
+                "is for 2D scenes (a 3D scene's free strain acts in every direction): remove it",
+            );
         }
         v.positive("solver.max_cfl", self.max_cfl);
         if let Some(g) = &self.gravity {

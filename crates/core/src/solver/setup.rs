@@ -108,10 +108,18 @@ where
             let start = particles.position.len();
             let count = body.volumes.len();
             if particles.groups.last().is_none_or(|g| &g.name != name) {
+                let free_strain_factor = if D == 2
+                    && s.solver.free_strain_2d == crate::scene::FreeStrain2d::PlaneStrain
+                {
+                    material.plane_strain_expansion()
+                } else {
+                    1.0
+                };
                 particles.groups.push(MaterialGroup {
                     name: name.clone(),
                     material: material.clone(),
                     range: start..start,
+                    free_strain_factor,
                     state: Vec::new(),
                 });
             }

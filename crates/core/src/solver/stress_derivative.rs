@@ -54,7 +54,8 @@ pub(crate) fn stress_derivative<const D: usize>(
                     .zip(scratch.direction.par_iter_mut())
                     .enumerate()
                     .for_each(|(p, (fm, dm))| {
-                        let scale = 1.0 / (1.0 + fs[p]);
+                        let factor = super::stress_update::free_strain_factor(&particles.groups, p);
+                        let scale = 1.0 / (1.0 + fs[p] * factor);
                         *fm = particles.deformation_gradient[p] * scale;
                         *dm = direction[p] * scale;
                     });

@@ -77,6 +77,14 @@ impl<const D: usize> StressScratch<D> {
     }
 }
 
+/// The factor particle `p`'s material group applies to its free strain in the plane (see
+/// `MaterialGroup::free_strain_factor`); groups cover the particles in order.
+#[inline]
+pub(crate) fn free_strain_factor(groups: &[crate::particles::MaterialGroup], p: usize) -> f64 {
+    let g = groups.partition_point(|g| g.range.end <= p);
+    groups.get(g).map_or(1.0, |g| g.free_strain_factor)
+}
+
 /// Runs every material on its particles.
 pub(crate) fn update_stress<const D: usize>(
     particles: &mut Particles<D>,
@@ -110,10 +118,11 @@ where
             // SAFETY: the sum visits each particle once, in disjoint chunks.
             let (fm, applied, lever) = unsafe { (mechanical.get(p), applied.get(p), lever.get(p)) };
             let f = &deformation_gradient[p];
-            *fm = f * (1.0 / (1.0 + fs[p]));
+            let e = fs[p] * free_strain_factor(groups, p);
+            *fm = f * (1.0 / (1.0 + e));
             let trace: f64 = (0..D).map(|d| stress[p][(d, d)]).sum();
-            *lever = (fs[p] - *applied) * crate::math::determinant(f) * volume0[p];
-            *applied = fs[p];
+            *lever = (e - *applied) * crate::math::determinant(f) * volume0[p];
+            *applied = e;
             -0.5 * trace * *lever
         });
     }
