@@ -22,6 +22,7 @@ pub mod stability_long;
 mod stability_long_plot;
 pub mod stability_map;
 mod stability_map_plot;
+pub mod stability_peer;
 mod stdout;
 pub mod study;
 

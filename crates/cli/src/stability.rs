@@ -1,7 +1,7 @@
 //! `mpm check-stability`: a fixed set of stiff and extreme cases, each with the outcome it
 //! must have. A test runs the suite and fails when an outcome changes.
 
-use mpm_core::output::{Metrics, NullSink, Outcome};
+use mpm_core::output::{Metrics, NullSink, Outcome, OutputSink};
 use mpm_core::plugin::Registry;
 use mpm_core::solver::{Control, Progress, RunError, preflight, run_scene};
 use serde::Serialize;
@@ -31,6 +31,8 @@ pub struct Case {
     pub scene: Value,
     /// The outcome it must have.
     pub expected: Expected,
+    /// A physics check of its own on the finished run's frames (the peer cases').
+    pub check: Option<crate::stability_peer::Check>,
 }
 
 impl Case {
@@ -331,72 +333,84 @@ pub fn cases() -> Vec<Case> {
             what: "Johnson-Cook steel block on a rigid wall at 50 m/s",
             scene: impact(50.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "impact-200",
             what: "Johnson-Cook steel block on a rigid wall at 200 m/s",
             scene: impact(200.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "impact-500",
             what: "Johnson-Cook steel block on a rigid wall at 500 m/s (failure at the foot)",
             scene: impact(500.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "impact-1000",
             what: "Johnson-Cook steel block on a rigid wall at 1000 m/s (shock, melting, failure)",
             scene: impact(1000.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "contrast-1e4",
             what: "stiff block on a soft one, E ratio 1e4",
             scene: contrast(1e4),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "contrast-1e6",
             what: "stiff block on a soft one, E ratio 1e6",
             scene: contrast(1e6),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "contact-contrast-1e6",
             what: "stiff block on a soft one, E ratio 1e6, frictionless contact between them",
             scene: contact_contrast(1e6),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "contact-impact-1000",
             what: "two elastic steel blocks meeting at 1000 m/s across frictionless contact",
             scene: contact_impact(1000.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "contact-mu-0",
             what: "block thrown along an elastic slab at 2 m/s, frictionless contact",
             scene: contact_sliding(0.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "contact-mu-1",
             what: "block thrown along an elastic slab at 2 m/s, Coulomb friction mu = 1",
             scene: contact_sliding(1.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "phase-contrast-1e6",
             what: "solid (E 1e10 Pa) and liquid (bulk 1e4 Pa) halves of one phase-mixture block",
             scene: phase_contrast(),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "heat-jump-300K",
             what: "face of a 300 K bar stepped to 600 K, explicit conduction at its own step",
             scene: heat_bar("jump", json!({"integrator": "explicit"}), json!({})),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "heat-jump-300K-implicit",
@@ -407,6 +421,7 @@ pub fn cases() -> Vec<Case> {
                 json!({"solver": {"dt": 10.0}}),
             ),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "heat-explicit-10x",
@@ -417,94 +432,110 @@ pub fn cases() -> Vec<Case> {
                 json!({"solver": {"dt": 0.625, "max_cfl": 100.0}}),
             ),
             expected: Expected::Stopped,
+            check: None,
         },
         Case {
             name: "latent-100x",
             what: "melting with latent heat 100x the sensible heat",
             scene: latent(100.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "nu-0.49",
             what: "block under gravity, nu = 0.49",
             scene: near_incompressible(0.49, false),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "nu-0.49-fbar",
             what: "block under gravity, nu = 0.49, F-bar",
             scene: near_incompressible(0.49, true),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "nu-0.499",
             what: "block under gravity, nu = 0.499",
             scene: near_incompressible(0.499, false),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "nu-0.499-fbar",
             what: "block under gravity, nu = 0.499, F-bar",
             scene: near_incompressible(0.499, true),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "dt-0.5x",
             what: "bar, fixed dt at 0.5x the stable step",
             scene: bar_time_step(0.5, 1.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "dt-1x",
             what: "bar, fixed dt at the stable step",
             scene: bar_time_step(1.0, 1.0),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "dt-2x",
             what: "bar, fixed dt at 2x the stable step",
             scene: bar_time_step(2.0, 1.0),
             expected: Expected::Refused,
+            check: None,
         },
         Case {
             name: "dt-10x",
             what: "bar, fixed dt at 10x the stable step",
             scene: bar_time_step(10.0, 1.0),
             expected: Expected::Refused,
+            check: None,
         },
         Case {
             name: "dt-10x-forced",
             what: "bar, 10x the stable step with max_cfl raised to allow it",
             scene: bar_time_step(10.0, 20.0),
             expected: Expected::Stopped,
+            check: None,
         },
         Case {
             name: "compress-10%",
             what: "block squeezed to 10% of its height by a plane",
             scene: compression(),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "spinning-disk",
             what: "free disk spinning at 2 rad/s for 1 s",
             scene: spinning_disk(),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "leaving",
             what: "block thrown out of an open face",
             scene: leaving(),
             expected: Expected::Stopped,
+            check: None,
         },
         Case {
             name: "sparse-surface",
             what: "1 particle per cell splashing onto the floor",
             scene: sparse_surface(),
             expected: Expected::Finished,
+            check: None,
         },
     ];
     cases.extend(crate::stability_cohesive::cases());
     cases.extend(crate::stability_implicit::cases());
+    cases.extend(crate::stability_peer::cases());
     cases
 }
 
@@ -552,6 +583,11 @@ pub(crate) enum Ran {
 
 /// Validates `scene`, checks it before the first step and runs it without writing results.
 pub(crate) fn run_value(scene: &Value, registry: &Registry) -> Ran {
+    run_value_into(scene, registry, &mut NullSink)
+}
+
+/// [`run_value`] with the frames going to `sink`.
+fn run_value_into(scene: &Value, registry: &Registry, sink: &mut dyn OutputSink) -> Ran {
     let scene = match mpm_core::scene::parse_scene_value(scene.clone(), registry, Path::new(".")) {
         Ok(s) => s,
         Err(e) => return Ran::Invalid(e.to_string()),
@@ -560,7 +596,7 @@ pub(crate) fn run_value(scene: &Value, registry: &Registry) -> Ran {
         return Ran::Refused(format!("{path}: {message}"));
     }
     let start = Instant::now();
-    match run_scene(&scene, &mut NullSink, &mut |_: &Progress| Control::Continue) {
+    match run_scene(&scene, sink, &mut |_: &Progress| Control::Continue) {
         Ok(m) => Ran::Done {
             metrics: Box::new(m),
             wall_seconds: start.elapsed().as_secs_f64(),
@@ -615,7 +651,8 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
         max_speed: f64::NAN,
         note: String::new(),
     };
-    let (metrics, wall_seconds) = match run_value(&case.scene, registry) {
+    let mut frames = crate::stability_peer::Frames::default();
+    let (metrics, wall_seconds) = match run_value_into(&case.scene, registry, &mut frames) {
         Ran::Invalid(note) => {
             result.outcome = "invalid".into();
             result.note = note;
@@ -652,12 +689,17 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
     };
     result.pass = result.outcome == expected;
     if result.outcome == "finished" {
-        let wrong = physics_failures(
+        let mut wrong = physics_failures(
             result.energy_drift,
             result.momentum_change,
             result.angular_momentum_change,
             case.keeps_angular_momentum(),
         );
+        match case.check.map(|check| check(&metrics, &frames)) {
+            Some(Ok(figure)) => result.note = figure,
+            Some(Err(e)) => wrong.push(e),
+            None => {}
+        }
         if !wrong.is_empty() {
             result.pass = false;
             result.note = wrong.join("; ");

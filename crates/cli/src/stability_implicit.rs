@@ -58,12 +58,14 @@ pub fn cases() -> Vec<Case> {
             what: "implicit static, stiff block on a soft one, E ratio 1e6, 1000x the explicit step",
             scene: contrast(),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "implicit-nu-0.4999",
             what: "implicit static, block under gravity, nu 0.4999 (no anti-locking: it locks)",
             scene: block(1e5, 0.4999, 0.25, floor(), json!({"gravity_ramp": 1.0})),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "implicit-nu-0.4999-fbar",
@@ -76,6 +78,7 @@ pub fn cases() -> Vec<Case> {
                 json!({"gravity_ramp": 1.0}),
             )),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "implicit-cut-and-recover",
@@ -88,12 +91,14 @@ pub fn cases() -> Vec<Case> {
                 json!({"gravity_ramp": 1.0, "max_newton_iterations": 4}),
             ),
             expected: Expected::Finished,
+            check: None,
         },
         Case {
             name: "implicit-unsupported",
             what: "implicit static, block under gravity with no wall: a singular system, a clear stop",
             scene: block(1e5, 0.3, 0.25, json!([]), json!({"gravity_ramp": 1.0})),
             expected: Expected::Stopped,
+            check: None,
         },
     ]
 }
