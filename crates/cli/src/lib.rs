@@ -16,6 +16,7 @@ mod scene_file;
 mod schema;
 mod service_cmd;
 pub mod stability;
+pub mod stability_case;
 pub mod stability_cohesive;
 pub mod stability_implicit;
 pub mod stability_long;

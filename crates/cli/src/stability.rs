@@ -1,6 +1,8 @@
 //! `mpm check-stability`: a fixed set of stiff and extreme cases, each with the outcome it
 //! must have. A test runs the suite and fails when an outcome changes.
 
+use crate::stability_case::Frames;
+pub use crate::stability_case::{Case, Expected};
 use mpm_core::output::{Metrics, NullSink, Outcome, OutputSink};
 use mpm_core::plugin::Registry;
 use mpm_core::solver::{Control, Progress, RunError, preflight, run_scene};
@@ -8,41 +10,6 @@ use serde::Serialize;
 use serde_json::{Value, json};
 use std::path::Path;
 use std::time::Instant;
-
-/// How a case must end.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Expected {
-    /// Runs to its end time.
-    Finished,
-    /// Stops itself with a diagnostic, without writing NaN.
-    Stopped,
-    /// Refused before the first step (a time step past stability).
-    Refused,
-}
-
-/// One case of the suite.
-pub struct Case {
-    /// Short name.
-    pub name: &'static str,
-    /// What it exercises.
-    pub what: &'static str,
-    /// The scene.
-    pub scene: Value,
-    /// The outcome it must have.
-    pub expected: Expected,
-    /// A physics check of its own on the finished run's frames (the peer cases').
-    pub check: Option<crate::stability_peer::Check>,
-}
-
-impl Case {
-    /// Whether the case's transfer keeps angular momentum (APIC, the default).
-    fn keeps_angular_momentum(&self) -> bool {
-        self.scene["solver"]["transfer"]
-            .as_str()
-            .is_none_or(|t| t == "apic")
-    }
-}
 
 /// The result of one case.
 #[derive(Debug, Serialize)]
@@ -651,7 +618,7 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
         max_speed: f64::NAN,
         note: String::new(),
     };
-    let mut frames = crate::stability_peer::Frames::default();
+    let mut frames = Frames::default();
     let (metrics, wall_seconds) = match run_value_into(&case.scene, registry, &mut frames) {
         Ran::Invalid(note) => {
             result.outcome = "invalid".into();

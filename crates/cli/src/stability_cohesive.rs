@@ -2,7 +2,7 @@
 //! two blocks bonded face to face and thrown apart, with a fracture energy so small that
 //! the bond breaks at once and one so large that it never softens.
 
-use crate::stability::{Case, Expected};
+use crate::stability_case::{Case, Expected};
 use serde_json::{Value, json};
 
 /// Two rubber-like blocks (E 1e6 Pa, wave speed 32 m/s) bonded along y = 0.2 m, thrown

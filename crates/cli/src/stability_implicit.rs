@@ -2,7 +2,7 @@
 //! beyond the explicit stable one, stiffness contrast, near incompressibility, a load step
 //! too large for Newton, and a body nothing holds.
 
-use crate::stability::{Case, Expected};
+use crate::stability_case::{Case, Expected};
 use serde_json::{Value, json};
 
 fn neo_hookean(e: f64, nu: f64) -> Value {

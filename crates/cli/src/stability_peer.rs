@@ -4,66 +4,9 @@
 //! particles crossing cells (stress noise), a surface particle row whose grid node carries
 //! a millionth of its mass, and a block resting on the floor for 12,581 steps (creep).
 
-use crate::stability::{Case, Expected};
-use mpm_core::output::{
-    FRAME_DIAGNOSTICS, FieldInfo, Frame, Metrics, OutputError, OutputSink, RunInfo,
-};
+use crate::stability_case::{Case, Expected, Frames};
+use mpm_core::output::Metrics;
 use serde_json::{Value, json};
-
-/// A case's own physics check on its finished run's metrics and frames: the measured
-/// figure (for the note), or what is wrong.
-pub type Check = fn(&Metrics, &Frames) -> Result<String, String>;
-
-/// A run's output frames, kept in memory for a case's check.
-#[derive(Default)]
-pub struct Frames {
-    /// The fields each frame carries, in order.
-    pub fields: Vec<FieldInfo>,
-    /// Every frame: its time, its field values and its diagnostics ([`FRAME_DIAGNOSTICS`]).
-    pub frames: Vec<(f64, Vec<Vec<f64>>, Vec<f64>)>,
-}
-
-impl Frames {
-    /// Field `name` of frame `index` (particle-major), if the run stored it.
-    pub fn field(&self, index: usize, name: &str) -> Option<&[f64]> {
-        let f = self.fields.iter().position(|f| f.name == name)?;
-        Some(self.frames.get(index)?.1.get(f)?.as_slice())
-    }
-
-    /// Diagnostic `name` of frame `index`.
-    pub fn diagnostic(&self, index: usize, name: &str) -> Option<f64> {
-        let d = FRAME_DIAGNOSTICS.iter().position(|d| *d == name)?;
-        self.frames.get(index)?.2.get(d).copied()
-    }
-
-    /// Field `name` of the first and of the last frame.
-    fn first_and_last(&self, name: &str) -> Result<(&[f64], &[f64]), String> {
-        let last = self.frames.len().checked_sub(1);
-        match (self.field(0, name), last.and_then(|l| self.field(l, name))) {
-            (Some(a), Some(b)) if a.len() == b.len() => Ok((a, b)),
-            _ => Err(format!("the run kept no `{name}` frames to check")),
-        }
-    }
-}
-
-impl OutputSink for Frames {
-    fn begin(&mut self, info: &RunInfo<'_>) -> Result<(), OutputError> {
-        self.fields = info.fields.to_vec();
-        self.frames.clear();
-        Ok(())
-    }
-    fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
-        self.frames.push((
-            frame.time,
-            frame.values.to_vec(),
-            frame.diagnostics.to_vec(),
-        ));
-        Ok(())
-    }
-    fn finish(&mut self, _: &Metrics) -> Result<(), OutputError> {
-        Ok(())
-    }
-}
 
 fn neo_hookean(e: f64, nu: f64, rho: f64) -> Value {
     json!({"type": "neo_hookean", "density": rho, "youngs_modulus": e, "poisson_ratio": nu})
@@ -370,6 +313,8 @@ pub fn cases() -> Vec<Case> {
 mod tests {
     use super::*;
     use crate::stability::run_case;
+    use crate::stability_case::Check;
+    use mpm_core::output::FieldInfo;
 
     #[test]
     fn the_checks_fail_on_wrong_physics() {
