@@ -102,21 +102,11 @@ fn glass_transition_spans_its_limits() {
     assert!(g.at(0.5) < 250.0 + 0.5 * 170.0);
 }
 
-/// The mixture's analytic stress derivative after a step from a prestressed state, against
-/// central differences of its own update from that state; relative error.
-fn mixture_tangent_error<const D: usize>(
-    tau: Option<f64>,
-    phi: f64,
-    f_prev: mpm_core::math::Matrix<D>,
-    f: mpm_core::math::Matrix<D>,
-    df: mpm_core::math::Matrix<D>,
-) -> f64 {
+/// The underfill-like mixture of the law's tests (a 8 GPa solid, a 10 Pa·s liquid of bulk
+/// modulus 2 GPa) with the liquid pressure relaxation time `tau`.
+fn test_mixture(tau: Option<f64>) -> crate::mixture::PhaseMixture {
     use crate::mixture::{LiquidPhase, PhaseMixture, PhaseMixtureParameters, SolidPhase};
-    use mpm_core::material::{
-        ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StateView, StressBatch, TangentBatch,
-    };
-    use mpm_core::math::Matrix;
-    let law = PhaseMixture::new(PhaseMixtureParameters {
+    PhaseMixture::new(PhaseMixtureParameters {
         density: 1600.0,
         solid: SolidPhase {
             youngs_modulus: 8e9,
@@ -127,7 +117,23 @@ fn mixture_tangent_error<const D: usize>(
             bulk_modulus: 2e9,
             pressure_relaxation_time: tau,
         },
-    });
+    })
+}
+
+/// The mixture's analytic stress derivative after a step from a prestressed state, against
+/// central differences of its own update from that state; relative error.
+fn mixture_tangent_error<const D: usize>(
+    tau: Option<f64>,
+    phi: f64,
+    f_prev: mpm_core::math::Matrix<D>,
+    f: mpm_core::math::Matrix<D>,
+    df: mpm_core::math::Matrix<D>,
+) -> f64 {
+    use mpm_core::material::{
+        ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StateView, StressBatch, TangentBatch,
+    };
+    use mpm_core::math::Matrix;
+    let law = test_mixture(tau);
     let dt = 30.0;
     let fraction = [phi];
     let pressure = vec![3e5];
@@ -217,29 +223,15 @@ fn mixture_tangent_matches_differences_of_the_update() {
 /// relaxation q = K ln J, and with τ ≫ dt the same to first order in dt/τ.
 #[test]
 fn relaxing_liquid_pressure_follows_the_maxwell_solution() {
-    use crate::mixture::{LiquidPhase, PhaseMixture, PhaseMixtureParameters, SolidPhase};
     use mpm_core::material::{ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StressBatch};
     use mpm_core::math::Matrix;
+    // The bulk modulus of `test_mixture`.
     let bulk = 2e9;
-    let law = |tau: Option<f64>| {
-        PhaseMixture::new(PhaseMixtureParameters {
-            density: 1600.0,
-            solid: SolidPhase {
-                youngs_modulus: 8e9,
-                poisson_ratio: 0.3,
-            },
-            liquid: LiquidPhase {
-                viscosity: 10.0,
-                bulk_modulus: bulk,
-                pressure_relaxation_time: tau,
-            },
-        })
-    };
     let f = Matrix::<2>::new(1.001, 0.0, 0.0, 1.0);
     let ln_j = 1.001f64.ln();
     // Two steps of `dt` (expand, then hold); the liquid mean stress after each.
     let run = |tau: Option<f64>, dt: f64| -> [f64; 2] {
-        let law = law(tau);
+        let law = test_mixture(tau);
         let mut previous = vec![0.0; 9];
         previous[0] = 1.0;
         previous[3] = 1.0;

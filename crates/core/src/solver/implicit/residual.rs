@@ -116,8 +116,9 @@ fn nodal_gradient<const D: usize>(
     grad
 }
 
-/// Sets F = (I + ∇Δu) Fₙ on every particle from the mirrored increment in `work.full`;
-/// returns false if a particle would be inverted.
+/// Sets F = (I + ∇Δu) Fₙ on every particle from the mirrored increment in `work.full`
+/// (with F-bar, scaled to the patch's mean volume change); returns false if a particle
+/// would be inverted.
 fn gather<const D: usize, K: Kernel>(
     sim: &mut Simulation<D, K>,
     work: &mut Workspace<D>,
@@ -133,7 +134,7 @@ where
     let l_out = SharedSlice::new(&mut sim.particles.velocity_gradient);
     let g_out = SharedSlice::new(&mut work.grad_du);
     let (interp, entry_dof, full, f_n) = (&work.interp, &work.entry_dof, &work.full, &work.f_n);
-    (0..chunk_count(n))
+    let ok = (0..chunk_count(n))
         .into_par_iter()
         .map(|chunk| {
             let mut ok = true;
@@ -152,22 +153,24 @@ where
             }
             ok
         })
-        .reduce(|| true, |a, b| a && b)
-        && apply_fbar(sim, work, dt)
+        .reduce(|| true, |a, b| a && b);
+    if ok {
+        apply_fbar(sim, work, dt);
+    }
+    ok
 }
 
 /// With F-bar, averages the trial volume changes over the patches and scales each
-/// particle's F (and rate) from A Fₙ to Ā Fₙ = s A Fₙ; true without F-bar.
+/// particle's F (and rate) from A Fₙ to Ā Fₙ = s A Fₙ; nothing without F-bar.
 fn apply_fbar<const D: usize, K: Kernel>(
     sim: &mut Simulation<D, K>,
     work: &mut Workspace<D>,
     dt: f64,
-) -> bool
-where
+) where
     dyn Material: DimensionDispatch<D>,
 {
     let Some(average) = work.fbar.as_mut() else {
-        return true;
+        return;
     };
     average.average(&work.grad_du, &work.volume_n);
     let average = &*average;
@@ -187,7 +190,6 @@ where
                 unsafe { *l_out.get(p) = ((identity + grad_du[p]) * s - identity) / dt };
             }
         });
-    true
 }
 
 /// The iterate's Ā_p = s_p (I + ∇Δu_p) (A_p without F-bar).
