@@ -62,3 +62,40 @@ fn plastic_work_is_booked_and_the_store_keeps_the_ledger_over_time() {
     assert!((dissipated[3] - ledger.dissipated()).abs() <= 1e-9 * ledger.dissipated());
     assert!(error.iter().all(|e| e.is_finite()));
 }
+
+#[test]
+fn wall_friction_is_booked() {
+    // A soft block thrown at 2 m/s along a floor wall with Coulomb friction μ = 0.3 stops
+    // after about 0.68 s (2 m/s over μg): friction takes its kinetic energy, and the ledger
+    // must book it (unbooked, the drift would be about −1).
+    let scene = serde_json::json!({
+        "name": "wall-friction", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [2.0, 0.3], "cell_size": 0.02,
+                   "walls": [{"sides": ["y-"], "condition": {"friction": {"coefficient": 0.3}}}]},
+        "solver": {"end_time": 1.0, "gravity": [0, -9.81], "cfl": 0.3},
+        "materials": {"block": {"type": "linear_elastic", "density": 1000.0,
+                                "youngs_modulus": 1e6, "poisson_ratio": 0.3}},
+        "bodies": [{"name": "block", "material": "block",
+                    "shape": {"box": {"min": [0.2, 0.0], "max": [0.4, 0.08]}},
+                    "velocity": {"uniform": [2.0, 0.0]}}],
+        "output": {"frames": 10, "fields": ["x", "v"]}
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let m = run(&load(
+        &write_scene(dir.path(), "friction.json", &scene),
+        &[],
+    ));
+    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+    let kinetic = 0.5 * 1000.0 * 0.2 * 0.08 * 2.0 * 2.0;
+    let ledger = m.energy_ledger;
+    println!(
+        "friction {:.4e} J/m of {kinetic:.4e}, drift {:.3e}, max speed {:.3e}",
+        ledger.friction, m.energy_drift, m.max_speed
+    );
+    assert!(
+        ledger.friction > 0.8 * kinetic && ledger.friction < 1.2 * kinetic,
+        "friction booked {} of {kinetic}",
+        ledger.friction
+    );
+    assert!(m.energy_drift.abs() < 0.1, "drift {}", m.energy_drift);
+}

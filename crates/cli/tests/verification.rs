@@ -194,8 +194,14 @@ fn coulomb_friction_decelerates_a_sliding_block_at_mu_g() {
                 "{floor} t={t}: {got} vs {expected}"
             );
         }
-        // Friction dissipates: the energy balance must show a loss, never a gain.
-        assert!(m.energy_drift < 0.0, "{floor}: {}", m.energy_drift);
+        // Friction dissipates, and the ledger books it (`energy_ledger.friction`), so the
+        // drift left is the method's own error.
+        println!(
+            "{floor}: friction {:.4e}, drift {:.3e}",
+            m.energy_ledger.friction, m.energy_drift
+        );
+        assert!(m.energy_ledger.friction > 0.0, "{floor}: nothing booked");
+        assert!(m.energy_drift.abs() < 0.05, "{floor}: {}", m.energy_drift);
     }
 }
 

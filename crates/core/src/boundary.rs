@@ -38,6 +38,39 @@ pub fn apply_contact<const D: usize>(v: &mut Vector<D>, n: &Vector<D>, contact: 
     }
 }
 
+/// What the surfaces did to one node in [`Boundaries::apply_booked`], J (J/m in 2D).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SurfaceWork {
+    /// Work moving obstacles did on the node.
+    pub work: f64,
+    /// Kinetic energy Coulomb friction took from the motion along the surface, in the
+    /// surface's frame: ½ m (|v_t|² − |v_t'|²) with v_t the tangential part of the velocity
+    /// before the rule. (The normal part a surface stops is the method's impact loss: not
+    /// booked.)
+    pub friction: f64,
+}
+
+/// The friction loss of one contact rule's change of the relative velocity `before` →
+/// `after` at normal `n` (0 unless `contact` is Coulomb friction and the node approached).
+#[inline]
+fn friction_loss<const D: usize>(
+    contact: Contact,
+    m: f64,
+    before: &Vector<D>,
+    after: &Vector<D>,
+    n: &Vector<D>,
+) -> f64 {
+    let Contact::Friction { .. } = contact else {
+        return 0.0;
+    };
+    let vn = before.dot(n);
+    if vn >= 0.0 {
+        return 0.0;
+    }
+    let tangential = before - n * vn;
+    0.5 * m * (tangential.norm_squared() - after.norm_squared())
+}
+
 /// A wall resolved against the grid: nodes on the wall side of node plane `surface`
 /// (inclusive) are wall nodes.
 #[derive(Clone, Copy, Debug)]
@@ -269,12 +302,27 @@ impl<const D: usize> Boundaries<D> {
     /// (what they take away is the method's impact loss, not work done from outside).
     #[inline]
     pub fn apply(&self, ijk: [usize; 3], x: &Vector<D>, t: f64, m: f64, v: &mut Vector<D>) -> f64 {
+        self.apply_booked(ijk, x, t, m, v).work
+    }
+
+    /// [`Self::apply`], also returning the kinetic energy Coulomb friction took from the
+    /// node's motion along the surfaces, for the energy ledger.
+    pub fn apply_booked(
+        &self,
+        ijk: [usize; 3],
+        x: &Vector<D>,
+        t: f64,
+        m: f64,
+        v: &mut Vector<D>,
+    ) -> SurfaceWork {
+        let mut booked = SurfaceWork::default();
         for wall in &self.walls {
             if let Some(n) = wall.normal_at::<D>(ijk) {
+                let before = *v;
                 apply_contact(v, &n, wall.contact);
+                booked.friction += friction_loss(wall.contact, m, &before, v, &n);
             }
         }
-        let mut work = 0.0;
         for obstacle in &self.obstacles {
             // The obstacle has moved by velocity·t: evaluate at the point relative to it.
             let local = x - obstacle.velocity * t;
@@ -282,12 +330,14 @@ impl<const D: usize> Boundaries<D> {
             if phi <= 0.0 {
                 let before = *v;
                 let mut rel = *v - obstacle.velocity;
+                let rel_before = rel;
                 apply_contact(&mut rel, &n, obstacle.contact);
                 *v = rel + obstacle.velocity;
-                work += m * (*v - before).dot(&obstacle.velocity);
+                booked.work += m * (*v - before).dot(&obstacle.velocity);
+                booked.friction += friction_loss(obstacle.contact, m, &rel_before, &rel, &n);
             }
         }
-        work
+        booked
     }
 }
 

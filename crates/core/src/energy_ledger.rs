@@ -18,7 +18,8 @@ pub struct EnergyLedger {
     pub damping: f64,
     /// Plastic work the materials reported (dissipated into heat).
     pub plastic: f64,
-    /// Work of Coulomb friction between bodies in contact (dissipated).
+    /// Energy Coulomb friction dissipated: between bodies in contact, and at walls and
+    /// obstacles with a friction condition (the motion along them it took away).
     pub friction: f64,
     /// Energy the cohesive interfaces dissipated as they softened.
     pub cohesive: f64,

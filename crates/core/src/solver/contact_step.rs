@@ -58,6 +58,7 @@ where
             // Damping is booked after the contact laws (below).
             let work = update_grid(grid, &self.boundaries, grid_params);
             self.ledger.boundaries += work.boundaries;
+            self.ledger.friction += work.friction;
         }
         if let Some(cohesive) = fields.cohesive.as_mut() {
             let laws = &fields.laws;

@@ -28,10 +28,13 @@ pub struct GridParams<const D: usize> {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GridWork {
     /// Work moving obstacles did on the nodes (fixed walls do none: what they take away
-    /// is the method's impact loss or wall friction).
+    /// is the method's impact loss, or friction, booked apart).
     pub boundaries: f64,
     /// Kinetic energy the velocity damping removed.
     pub damping: f64,
+    /// Kinetic energy Coulomb friction at walls and obstacles took from the motion along
+    /// them.
+    pub friction: f64,
 }
 
 /// The kinetic energy a velocity damping factor `damping` (< 1, this step's) took from the
@@ -82,12 +85,12 @@ pub fn update_grid<const D: usize>(
     let momentum = SharedSlice::new(momentum);
     let work = ordered_reduce(
         len.div_ceil(CHUNK),
-        || (0.0, 0.0),
+        || (0.0, 0.0, 0.0),
         |chunk| {
             let start = chunk * CHUNK;
             // SAFETY: chunks are disjoint node ranges.
             let velocities = unsafe { momentum.range(start..(start + CHUNK).min(len)) };
-            let (mut work, mut damped) = (0.0, 0.0);
+            let (mut work, mut damped, mut friction) = (0.0, 0.0, 0.0);
             for (k, v) in velocities.iter_mut().enumerate() {
                 let i = start + k;
                 let m = mass[i];
@@ -111,8 +114,10 @@ pub fn update_grid<const D: usize>(
                 if !boundaries.is_empty() {
                     let ijk = node_coords(&stride, i);
                     let x = node_position(&origin, dx, ijk);
-                    surface_work = boundaries.apply(ijk, &x, params.time, m, v);
+                    let booked = boundaries.apply_booked(ijk, &x, params.time, m, v);
+                    surface_work = booked.work;
                     work += surface_work;
+                    friction += booked.friction;
                 }
                 if damps && surface_work == 0.0 {
                     // What damping took from the velocity the node keeps: fixed walls act
@@ -122,13 +127,14 @@ pub fn update_grid<const D: usize>(
                     damped += 0.5 * m * v.norm_squared() * (1.0 / (damping * damping) - 1.0);
                 }
             }
-            (work, damped)
+            (work, damped, friction)
         },
-        |a, b| (a.0 + b.0, a.1 + b.1),
+        |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2),
     );
     boundaries.mirror_stick_walls(grid);
     GridWork {
         boundaries: work.0,
         damping: work.1,
+        friction: work.2,
     }
 }

@@ -279,6 +279,7 @@ where
         if forces {
             self.ledger.boundaries += work.boundaries;
             self.ledger.damping += work.damping;
+            self.ledger.friction += work.friction;
         }
     }
 
