@@ -588,14 +588,7 @@ pub(super) fn probe_moduli<const D: usize, K: Kernel>(
 
 /// The least shear stiffness the preconditioner's estimate gives a particle, as a share of
 /// its volumetric stiffness Dλ + 2μ: 1% without F-bar; with F-bar the volumetric part acts
-/// on patch means, so the estimate stays factorable with far less (overridable for
-/// experiments with `MPM_SHEAR_FLOOR`).
+/// on patch means, so the estimate stays factorable with far less.
 fn shear_floor(fbar: bool) -> f64 {
-    if let Some(v) = std::env::var("MPM_SHEAR_FLOOR")
-        .ok()
-        .and_then(|v| v.parse().ok())
-    {
-        return v;
-    }
     if fbar { 1e-4 } else { 0.01 }
 }
