@@ -52,20 +52,9 @@ fn implicit_fbar_removes_volumetric_locking_of_a_near_incompressible_beam() {
     // patches (8); with ν = 0.3, 4.4% and 5.8% (F-bar softens a little, as it does in the
     // explicit mode; the beam-theory reference leaves out shear, a few % at L/h = 5).
     let tip = |anti_locking: &str, nu: f64| {
-        let nu = format!("{nu}");
-        let m = run(&load_example(
-            "cantilever.json",
+        let m = run(&short_cantilever(
+            nu,
             &[
-                "domain.cell_size=0.025",
-                "domain.min=[0,-0.3]",
-                "domain.max=[0.6,0.2]",
-                "bodies[0].shape.box.max=[0.5,0.1]",
-                &format!("materials.beam.poisson_ratio={nu}"),
-                &format!("reference.poisson_ratio={nu}"),
-                "reference.length=0.5",
-                "reference.thickness=0.1",
-                "solver.gravity=[0,-1]",
-                "reference.gravity=1",
                 "solver.end_time=1",
                 "solver.dt=1",
                 "solver.damping=0",

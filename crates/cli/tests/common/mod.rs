@@ -26,6 +26,29 @@ pub fn load_example(name: &str, overrides: &[&str]) -> ValidatedScene {
     load(&example(name), &o)
 }
 
+/// The short cantilever of the F-bar tests (L = 0.5 m, h = 0.1 m, 4 cells thick, a small
+/// load of g = 1 m/s², beam-theory reference) with Poisson's ratio `nu`, then `overrides`.
+pub fn short_cantilever(nu: f64, overrides: &[&str]) -> ValidatedScene {
+    let (material, reference) = (
+        format!("materials.beam.poisson_ratio={nu}"),
+        format!("reference.poisson_ratio={nu}"),
+    );
+    let mut all = vec![
+        "domain.cell_size=0.025",
+        "domain.min=[0,-0.3]",
+        "domain.max=[0.6,0.2]",
+        "bodies[0].shape.box.max=[0.5,0.1]",
+        &material,
+        &reference,
+        "reference.length=0.5",
+        "reference.thickness=0.1",
+        "solver.gravity=[0,-1]",
+        "reference.gravity=1",
+    ];
+    all.extend_from_slice(overrides);
+    load_example("cantilever.json", &all)
+}
+
 /// The issues (`path: message` lines) of an example made invalid by `overrides`; panics
 /// when the scene is accepted.
 pub fn invalid_example(name: &str, overrides: &[&str]) -> Vec<String> {
