@@ -324,12 +324,7 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
         let l_out = SharedSlice::new(&mut sim.particles.velocity_gradient);
         let e_out = SharedSlice::new(&mut work.step_of);
         let work = &*work;
-        // The change of Ā along the direction: ∇v, or F-bar's δĀ in `work.direction`.
-        let delta: &[Matrix<D>] = if work.fbar.is_some() {
-            &work.direction
-        } else {
-            &work.grad_v
-        };
+        let delta = a_bar_change(work);
         (0..chunk_count(n)).into_par_iter().for_each(|chunk| {
             for p in chunk_range(chunk, n) {
                 let g = delta[p];
@@ -394,8 +389,8 @@ fn finish_product<const D: usize>(
 }
 
 /// The direction's gradient ∇v per particle into `work.grad_v` (from the mirrored direction
-/// in `work.full_v`), and the change of Ā along it into `work.direction`: ∇v itself, or
-/// F-bar's δĀ.
+/// in `work.full_v`), and with F-bar the change of Ā along it, δĀ, into `work.direction`
+/// (read both through [`a_bar_change`]).
 fn direction_gradients<const D: usize>(work: &mut Workspace<D>) {
     let (interp, entry_dof, full_v) = (&work.interp, &work.entry_dof, &work.full_v);
     work.grad_v
@@ -404,14 +399,23 @@ fn direction_gradients<const D: usize>(work: &mut Workspace<D>) {
         .for_each(|(p, g)| *g = nodal_gradient(interp, entry_dof, full_v, p));
     let n = work.grad_v.len();
     work.direction.resize(n, Matrix::<D>::zeros());
-    match work.fbar.as_mut() {
-        Some(average) => average.direction(
+    if let Some(average) = work.fbar.as_mut() {
+        average.direction(
             &work.grad_du,
             &work.grad_v,
             &work.volume_n,
             &mut work.direction,
-        ),
-        None => work.direction.copy_from_slice(&work.grad_v),
+        );
+    }
+}
+
+/// The change of Ā along the direction after [`direction_gradients`]: F-bar's δĀ, or ∇v
+/// itself without F-bar (not copied).
+fn a_bar_change<const D: usize>(work: &Workspace<D>) -> &[Matrix<D>] {
+    if work.fbar.is_some() {
+        &work.direction
+    } else {
+        &work.grad_v
     }
 }
 
@@ -433,11 +437,18 @@ fn tangent_product_analytic<const D: usize, K: Kernel>(
     work.direction.resize(n, Matrix::<D>::zeros());
     work.stress_change.resize(n, Matrix::<D>::zeros());
     direction_gradients(work);
-    let f_n = &work.f_n;
-    work.direction
-        .par_iter_mut()
-        .zip(f_n.par_iter())
-        .for_each(|(direction, f)| *direction *= f);
+    // δF = δĀ Fₙ (∇v Fₙ without F-bar).
+    if work.fbar.is_some() {
+        work.direction
+            .par_iter_mut()
+            .zip(work.f_n.par_iter())
+            .for_each(|(direction, f)| *direction *= f);
+    } else {
+        work.direction
+            .par_iter_mut()
+            .zip(work.grad_v.par_iter().zip(work.f_n.par_iter()))
+            .for_each(|(direction, (g, f))| *direction = g * f);
+    }
     stress_derivative(
         &sim.particles,
         &work.state_n,
