@@ -168,6 +168,11 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn liquid_viscosity(&self) -> Option<f64> {
         None
     }
+    /// A liquid's surface tension against the void, N/m: the incompressible mode sets the
+    /// Laplace pressure σ·κ on its free surface. 0, the default, is no surface tension.
+    fn surface_tension(&self) -> f64 {
+        0.0
+    }
     /// With `solver.free_strain_2d: "plane_strain"`, the factor by which a 2D scene's
     /// isotropic free strain (thermal expansion, cure shrinkage) acts in the plane, standing
     /// in for the out-of-plane part the held third direction turns into in-plane stress:
@@ -202,6 +207,8 @@ pub trait Material: Send + Sync {
     fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>);
     /// See [`ConstitutiveLaw::liquid_viscosity`].
     fn liquid_viscosity(&self) -> Option<f64>;
+    /// See [`ConstitutiveLaw::surface_tension`].
+    fn surface_tension(&self) -> f64;
     /// See [`ConstitutiveLaw::plane_strain_expansion`].
     fn plane_strain_expansion(&self) -> f64;
 }
@@ -239,6 +246,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn liquid_viscosity(&self) -> Option<f64> {
         ConstitutiveLaw::liquid_viscosity(self)
+    }
+    fn surface_tension(&self) -> f64 {
+        ConstitutiveLaw::surface_tension(self)
     }
     fn plane_strain_expansion(&self) -> f64 {
         ConstitutiveLaw::plane_strain_expansion(self)

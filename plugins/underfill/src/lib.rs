@@ -23,6 +23,7 @@
 
 mod banded;
 mod capillary_filling;
+mod capillary_references;
 mod cross_section;
 mod front;
 mod hele_shaw;
@@ -72,6 +73,7 @@ impl Plugin for UnderfillPlugin {
     fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
         let mut references = vec![capillary_filling::factory()];
         references.extend(liquid_references::factories());
+        references.extend(capillary_references::factories());
         references
     }
 }

@@ -26,6 +26,10 @@ pub struct LiquidParameters {
     /// Temperature the viscosity is evaluated at when no physics gives the particles one, K.
     #[serde(default = "default_temperature")]
     pub temperature: f64,
+    /// Surface tension against the void (air), N/m: the free surface carries the Laplace
+    /// pressure σ·κ. 0 (the default) is none.
+    #[serde(default)]
+    pub surface_tension: f64,
 }
 
 fn default_temperature() -> f64 {
@@ -120,6 +124,10 @@ impl ConstitutiveLaw for Liquid {
     fn liquid_viscosity(&self) -> Option<f64> {
         Some(f64::from_bits(self.max_viscosity.load(Ordering::Relaxed)))
     }
+
+    fn surface_tension(&self) -> f64 {
+        self.params.surface_tension
+    }
 }
 
 /// Checks the parameters and builds the material.
@@ -135,6 +143,12 @@ pub(crate) fn build(p: LiquidParameters, path: &str) -> Result<Arc<dyn Material>
         issues.push(Issue::new(
             format!("{path}.temperature"),
             "must be a finite number > 0 (kelvin)",
+        ));
+    }
+    if !(p.surface_tension.is_finite() && p.surface_tension >= 0.0) {
+        issues.push(Issue::new(
+            format!("{path}.surface_tension"),
+            "must be a finite number >= 0 (N/m)",
         ));
     }
     if issues.is_empty() {

@@ -327,6 +327,18 @@ impl Validator {
             }
         }
         let incompressible = matches!(s.solver.mechanics, Mechanics::Incompressible(_));
+        let mut tension: Option<(&str, f64)> = None;
+        for (name, m) in materials {
+            let sigma = m.surface_tension();
+            match tension {
+                Some((first, value)) if sigma > 0.0 && sigma != value => self.err(
+                    format!("materials.{name}.surface_tension"),
+                    format!("one surface tension per scene: `{first}` has {value} N/m already (liquids against each other are not modelled)"),
+                ),
+                None if sigma > 0.0 => tension = Some((name.as_str(), sigma)),
+                _ => {}
+            }
+        }
         for (name, m) in materials {
             let liquid = m.liquid_viscosity().is_some();
             if incompressible && !liquid {

@@ -37,6 +37,8 @@
 //! The step is bounded by the velocity CFL, dx/(|v|max + √(dx·|g|)), and, with viscosity explicit, by
 //! ρ·dx²/(2·D·μ); never by a sound speed.
 
+mod surface_tension;
+
 use super::DimensionDispatch;
 use super::grid_update::{GridParams, update_grid};
 use super::mode::StepMode;
@@ -49,6 +51,7 @@ use crate::material::Material;
 use crate::math::{Matrix, Vector};
 use crate::physics::PhysicsFault;
 use crate::scene::{IncompressibleSettings, Transfer};
+use surface_tension::SurfaceTension;
 
 /// Corners of a cell (2^D, at most 8).
 const MAX_CORNERS: usize = 8;
@@ -84,6 +87,8 @@ pub(super) struct Incompressible<const D: usize> {
     /// extrapolated in pass k, `u8::MAX` where it is not set.
     layer: Vec<u8>,
     pressure: Vec<f64>,
+    /// The Laplace pressure on the free surface, when a liquid has a surface tension.
+    surface: Option<SurfaceTension<D>>,
     rhs: Vec<f64>,
     r: Vec<f64>,
     z: Vec<f64>,
@@ -108,6 +113,7 @@ impl<const D: usize> Incompressible<D> {
             correction: Vec::new(),
             layer: Vec::new(),
             pressure: Vec::new(),
+            surface: None,
             rhs: Vec::new(),
             r: Vec::new(),
             z: Vec::new(),
@@ -121,10 +127,17 @@ impl<const D: usize> Incompressible<D> {
         &mut self,
         grid: &crate::grid::Grid<D>,
         boundaries: &crate::boundary::Boundaries<D>,
+        groups: &[crate::particles::MaterialGroup],
     ) {
         if self.pressure.len() == grid.len() {
             return;
         }
+        // Validation lets only one surface tension into a scene (liquids without one
+        // count as 0); its liquid's density makes the colour field.
+        self.surface = groups
+            .iter()
+            .find(|g| g.material.surface_tension() > 0.0)
+            .map(|g| SurfaceTension::new(g.material.surface_tension(), g.material.density()));
         let dx = grid.dx;
         let corners = 1 << D;
         // 1D factors on [0, 1]: φ0 = 1 - s, φ1 = s.
@@ -252,7 +265,15 @@ where
                 viscous = viscous.min(rho * dx * dx / (2.0 * D as f64 * mu));
             }
         }
-        convective.min(viscous).min(sim.physics_dt)
+        let capillary = sim
+            .particles
+            .groups
+            .iter()
+            .map(|g| {
+                surface_tension::stable_dt(g.material.surface_tension(), g.material.density(), dx)
+            })
+            .fold(f64::INFINITY, f64::min);
+        convective.min(viscous).min(capillary).min(sim.physics_dt)
     }
 }
 
@@ -266,7 +287,7 @@ impl<const D: usize> Incompressible<D> {
     where
         dyn Material: DimensionDispatch<D>,
     {
-        self.prepare(&sim.grid, &sim.boundaries);
+        self.prepare(&sim.grid, &sim.boundaries, &sim.particles.groups);
         let params = GridParams {
             dt,
             forces: true,
@@ -346,6 +367,21 @@ impl<const D: usize> Incompressible<D> {
             if *free <= 0.0 {
                 *x = 0.0;
             }
+        }
+        if let Some(surface) = &mut self.surface {
+            let liquid_cells = self
+                .cell_volume
+                .iter()
+                .zip(&self.cell_node)
+                .filter(|(v, _)| **v > 0.0)
+                .map(|(_, &node)| node);
+            surface.surface_pressure(
+                &sim.grid,
+                liquid_cells,
+                &self.corner_offset[..corners],
+                &self.inverse_diagonal,
+                &mut self.pressure,
+            );
         }
         let Self {
             stiffness,

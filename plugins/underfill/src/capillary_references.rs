@@ -1,0 +1,149 @@
+//! References for surface tension of liquid particles (`liquid.surface_tension`): the
+//! drop at rest, whose inside carries the Laplace pressure σ/R (a 2D cylinder) or 2σ/R
+//! (a sphere) above the void's.
+
+use mpm_core::output::Comparison;
+use mpm_core::reference::{
+    Frame, Reference, ReferenceFactory, ReferenceLaw, RelativeL2, TypedReferenceFactory, compare,
+};
+use mpm_core::scene::{Issue, Scene};
+use mpm_core::section::Checks;
+use serde::Deserialize;
+use std::sync::Arc;
+
+/// A drop at rest without gravity: the particles' `pressure` within `inner_fraction` of the
+/// radius from the centre against the Laplace pressure (D − 1)·σ/R. Error: relative L2
+/// error of those pressures at the last frame. Comparisons: `laplace_pressure` (their
+/// mean against (D − 1)·σ/R), `spurious_speed` (the largest particle speed against the
+/// capillary velocity σ/μ, which sets the spurious currents of surface-tension schemes)
+/// and `radius` (the farthest particle's distance from the centre against R: the drop
+/// keeps its shape).
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LaplaceDropParams {
+    /// Centre of the drop, m.
+    pub center: Vec<f64>,
+    /// Radius of the drop, m.
+    pub radius: f64,
+    /// Surface tension σ, N/m.
+    pub surface_tension: f64,
+    /// Dynamic viscosity μ of the liquid, Pa·s (for the capillary velocity σ/μ).
+    pub viscosity: f64,
+    /// Particles within this fraction of the radius are compared (default 0.5: away from
+    /// the surface band the curvature is taken from).
+    #[serde(default = "default_inner_fraction")]
+    pub inner_fraction: f64,
+}
+
+fn default_inner_fraction() -> f64 {
+    0.5
+}
+
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+struct LaplaceDrop {
+    p: LaplaceDropParams,
+    error: Option<f64>,
+    comparisons: Vec<Comparison>,
+}
+
+impl ReferenceLaw for LaplaceDrop {
+    fn kind(&self) -> &'static str {
+        "relative L2 error of the pressure inside a drop at rest against the Laplace pressure, last frame"
+    }
+
+    fn observe<const D: usize>(&mut self, frame: Frame<'_, D>) {
+        if frame.time <= 0.0 {
+            return;
+        }
+        let p = &self.p;
+        let exact = (D as f64 - 1.0) * p.surface_tension / p.radius;
+        let particles = frame.particles;
+        let distance = |i: usize| {
+            let x = &particles.position[i];
+            (0..D)
+                .map(|d| (x[d] - p.center[d]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let mut l2 = RelativeL2::default();
+        let (mut sum, mut count) = (0.0, 0usize);
+        for group in &particles.groups {
+            let Some(field) = group
+                .material
+                .state_fields()
+                .iter()
+                .position(|f| f.name == "pressure")
+            else {
+                continue;
+            };
+            for (k, i) in group.range.clone().enumerate() {
+                if distance(i) < p.inner_fraction * p.radius {
+                    let pressure = group.state[field][k];
+                    l2.add((pressure - exact).powi(2), exact * exact);
+                    sum += pressure;
+                    count += 1;
+                }
+            }
+        }
+        let farthest = (0..particles.len()).map(distance).fold(0.0, f64::max);
+        let speed = particles
+            .velocity
+            .iter()
+            .map(|v| v.norm())
+            .fold(0.0, f64::max);
+        self.error = l2.value();
+        self.comparisons.clear();
+        if count > 0 {
+            self.comparisons
+                .push(compare("laplace_pressure", sum / count as f64, exact));
+        }
+        self.comparisons.push(compare(
+            "spurious_speed",
+            speed,
+            p.surface_tension / p.viscosity,
+        ));
+        self.comparisons.push(compare("radius", farthest, p.radius));
+    }
+
+    fn error(&self) -> Option<f64> {
+        self.error
+    }
+
+    fn comparisons(&self) -> Vec<Comparison> {
+        self.comparisons.clone()
+    }
+}
+
+fn build_laplace_drop(
+    p: LaplaceDropParams,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Reference>, Vec<Issue>> {
+    let mut c = Checks::new(path);
+    if p.center.len() != scene.dimension as usize || p.center.iter().any(|x| !x.is_finite()) {
+        c.error(
+            "center",
+            format!("must be {} finite numbers", scene.dimension),
+        );
+    }
+    c.positive("radius", p.radius);
+    c.positive("surface_tension", p.surface_tension);
+    c.positive("viscosity", p.viscosity);
+    if !(p.inner_fraction > 0.0 && p.inner_fraction <= 1.0) {
+        c.error("inner_fraction", "must lie in (0, 1]");
+    }
+    c.finish()?;
+    Ok(Arc::new(LaplaceDrop {
+        p,
+        error: None,
+        comparisons: Vec::new(),
+    }))
+}
+
+/// The `laplace_drop` reference type.
+pub fn factories() -> Vec<Box<dyn ReferenceFactory>> {
+    vec![Box::new(TypedReferenceFactory::new(
+        "laplace_drop",
+        build_laplace_drop,
+    ))]
+}
