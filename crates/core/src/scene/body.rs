@@ -111,6 +111,14 @@ pub enum InitialVelocity {
         /// Angular velocity, rad/s: one number in 2D, a vector in 3D.
         angular_velocity: Vec<f64>,
     },
+    /// A linear velocity field v = G·(x − center): rotation, shear or stretching at once
+    /// (e.g. a drop's oscillation mode, v = a·(x, −y)).
+    Affine {
+        /// Point of zero velocity.
+        center: Vec<f64>,
+        /// Velocity gradient G, 1/s, row by row (D·D numbers: ∂v_i/∂x_j at i·D + j).
+        gradient: Vec<f64>,
+    },
 }
 
 impl Shape {
@@ -204,6 +212,20 @@ impl Body {
                     v.err(
                         format!("{p}.angular_velocity"),
                         format!("needs {want} finite number(s) in {}D", v.dim),
+                    );
+                }
+            }
+            Some(InitialVelocity::Affine { center, gradient }) => {
+                let p = format!("{path}.velocity.affine");
+                v.vector(&format!("{p}.center"), center);
+                if gradient.len() != v.dim * v.dim || gradient.iter().any(|x| !x.is_finite()) {
+                    v.err(
+                        format!("{p}.gradient"),
+                        format!(
+                            "needs {} finite numbers in {}D (row by row)",
+                            v.dim * v.dim,
+                            v.dim
+                        ),
                     );
                 }
             }

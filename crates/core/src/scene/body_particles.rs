@@ -261,6 +261,13 @@ fn initial_velocities(dim: usize, positions: &[f64], spec: Option<&InitialVeloci
                     out[2] = w[0] * r[1] - w[1] * r[0];
                 }
             }
+            Some(InitialVelocity::Affine { center, gradient }) => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = (0..dim)
+                        .map(|j| gradient[i * dim + j] * (x[j] - center[j]))
+                        .sum();
+                }
+            }
         }
     }
     v
