@@ -35,11 +35,16 @@
 //! D·M⁻¹·G, not under ∫∇N·∇N). The price: ∇·v is small, not zero, at the discrete level.
 //!
 //! The step is bounded by the velocity CFL, dx/(|v|max + √(dx·|g|)), and, with viscosity explicit, by
-//! ρ·dx²/(2·D·μ); never by a sound speed.
+//! ρ·dx²/(2·D·μ); never by a sound speed. With `viscosity: "implicit"` P2G leaves the
+//! viscous stress out and a backward-Euler viscous solve on the grid (viscosity.rs) acts
+//! between steps 1 and 2; the viscous bound then goes.
+
+mod viscosity;
 
 use super::DimensionDispatch;
 use super::grid_update::{GridParams, update_grid};
 use super::mode::StepMode;
+use super::particle_to_grid::ForceTerm;
 use super::simulation::Simulation;
 use crate::boundary::Boundaries;
 use crate::grid::{node_coords, node_position};
@@ -48,7 +53,7 @@ use crate::linear_solvers::conjugate_gradient::{Work, solve};
 use crate::material::Material;
 use crate::math::{Matrix, Vector};
 use crate::physics::PhysicsFault;
-use crate::scene::{IncompressibleSettings, Transfer};
+use crate::scene::{IncompressibleSettings, Transfer, ViscousIntegration};
 
 /// Corners of a cell (2^D, at most 8).
 const MAX_CORNERS: usize = 8;
@@ -89,11 +94,15 @@ pub(super) struct Incompressible<const D: usize> {
     z: Vec<f64>,
     p: Vec<f64>,
     ap: Vec<f64>,
+    /// The implicit viscous step (`viscosity: "implicit"`), else `None`.
+    viscosity: Option<viscosity::ImplicitViscosity<D>>,
 }
 
 impl<const D: usize> Incompressible<D> {
     pub(super) fn new(settings: IncompressibleSettings) -> Self {
         Self {
+            viscosity: (settings.viscosity == ViscousIntegration::Implicit)
+                .then(viscosity::ImplicitViscosity::default),
             settings,
             stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
             gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
@@ -216,10 +225,18 @@ where
     fn advance(&mut self, sim: &mut Simulation<D, K>, dt: f64) {
         sim.reorder_if_due();
         sim.bins.rebuild::<D, K>(&sim.grid, &sim.particles);
-        let force = sim.force_term();
+        // With implicit viscosity the liquids' stress is solved for, not scattered.
+        let force = if self.viscosity.is_some() {
+            ForceTerm::Body
+        } else {
+            sim.force_term()
+        };
         sim.grid.clear();
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity);
+        }
         self.project(sim, dt);
         sim.g2p(dt, true, true, true);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
@@ -245,7 +262,8 @@ where
         let g = sim.settings.gravity.norm();
         let convective = dx / (sim.kinematics.max_speed + (dx * g).sqrt()).max(1e-300);
         let mut viscous = f64::INFINITY;
-        for group in &sim.particles.groups {
+        let explicit = self.viscosity.is_none();
+        for group in sim.particles.groups.iter().filter(|_| explicit) {
             let mu = group.material.liquid_viscosity().unwrap_or(0.0);
             if mu > 0.0 {
                 let rho = group.material.density();
