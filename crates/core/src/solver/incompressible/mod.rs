@@ -235,9 +235,11 @@ where
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);
         if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.add_pressure_force(&mut self.free_velocity, &mut self.pressure, dt);
             viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity);
         }
         self.project(sim, dt);
+        self.incremental_pressure(&sim.grid);
         sim.g2p(dt, true, true, true);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
         // particle volume stays its reference volume and F cannot degenerate.
@@ -251,8 +253,13 @@ where
 
     /// The pressure solve is warm-started from the last pressure; a resumed run starts it
     /// cold, so the run that writes the checkpoint does too.
+    /// With implicit viscosity the last pressure force is forgotten too (the next step is
+    /// a plain projection), as a resumed run does not have it.
     fn save(&mut self, _checkpoint: &mut crate::checkpoint::Checkpoint) {
         self.pressure.iter_mut().for_each(|p| *p = 0.0);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.forget_pressure_force();
+        }
     }
 
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
@@ -437,6 +444,22 @@ impl<const D: usize> Incompressible<D> {
             }
         }
         apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// With implicit viscosity the projection solved for the pressure increment: adds the
+    /// last pressure back (0 on the free surface) and keeps the total pressure's velocity
+    /// change per unit time, -(1/M_i) Σ_c ∫_c N_i ∇p (extrapolated as the projection's), for
+    /// the next step's viscous solve (see viscosity.rs). Nothing with explicit viscosity.
+    fn incremental_pressure(&mut self, grid: &crate::grid::Grid<D>) {
+        let Some(viscosity) = self.viscosity.as_mut() else {
+            return;
+        };
+        viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal);
+        self.pressure_correction(1.0, grid.dx);
+        self.extrapolate_correction(grid);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.keep_pressure_force(&self.correction, &self.layer);
+        }
     }
 
     /// The projection's velocity change at the nodes of the liquid cells:

@@ -38,6 +38,12 @@
 //! viscosity at the particle's state at the start of the step (the last step's velocity
 //! gradient, temperature and cure), lagged one step: a Picard iteration over steps.
 //!
+//! The projection is incremental (Goda 1979) with implicit viscosity: v̂ includes the last
+//! step's pressure force -dt (1/M_i) Σ_c ∫_c N_i ∇p^n, and the Poisson equation solves
+//! for the increment p^{n+1} - p^n. Without it the split scheme's steady state carries an
+//! error dt·ν·Δ∇p, which is no longer small once ν·dt/dx² ≫ 1 (a Poiseuille channel with
+//! open ends at μ = 100 Pa·s erred 13.6% at 15 steps, 5.3% with the increment).
+//!
 //! The projection then takes v₀ + δ on the free components and v̂ on the fixed ones (the
 //! velocity before the walls plus the viscous change δ, zero where fixed), as with
 //! explicit viscosity it takes v̂ plus the explicit viscous change; the walls act after.
@@ -249,7 +255,11 @@ pub(super) struct ImplicitViscosity<const D: usize> {
     scratch: Scratch<D>,
     /// Whether the mirrors are built (the walls do not move).
     mirrored: bool,
-    /// The velocity after the walls and obstacles, v₀ (one number per node component).
+    /// The last step's pressure, p^n (the projection solves for the increment).
+    base: Vec<f64>,
+    /// The last step's pressure force per unit mass, -(1/M_i) Σ_c ∫_c N_i ∇p^n, per node.
+    pressure_force: Vec<Vector<D>>,
+    /// The start of the solve, v₀ (one number per node component).
     start: Vec<f64>,
     /// The correction δ.
     delta: Vec<f64>,
@@ -262,7 +272,7 @@ pub(super) struct ImplicitViscosity<const D: usize> {
 }
 
 impl<const D: usize> ImplicitViscosity<D> {
-    /// Sizes the node arrays for `nodes` grid nodes and builds the mirrors (once).
+    /// Sizes the node arrays for the grid and builds the mirrors (once).
     fn prepare<K: Kernel>(&mut self, sim: &Simulation<D, K>)
     where
         dyn Material: DimensionDispatch<D>,
@@ -301,6 +311,52 @@ impl<const D: usize> ImplicitViscosity<D> {
                 });
             self.mirrored = true;
         }
+    }
+
+    /// The incremental pressure correction's first half: adds the last pressure force
+    /// dt·(-(1/M) ∫N ∇p^n) to `velocity` (the velocity before the walls), and keeps p^n
+    /// while the projection solves for the increment from zero.
+    pub(super) fn add_pressure_force(
+        &mut self,
+        velocity: &mut [Vector<D>],
+        pressure: &mut [f64],
+        dt: f64,
+    ) {
+        if self.base.len() != pressure.len() {
+            self.base = vec![0.0; pressure.len()];
+            self.pressure_force = vec![Vector::<D>::zeros(); pressure.len()];
+        }
+        for (v, a) in velocity.iter_mut().zip(&self.pressure_force) {
+            *v += a * dt;
+        }
+        self.base.copy_from_slice(pressure);
+        pressure.fill(0.0);
+    }
+
+    /// The total pressure p^n + Δp on the nodes the projection solved for (`free` > 0);
+    /// 0 on the free surface.
+    pub(super) fn total_pressure(&self, pressure: &mut [f64], free: &[f64]) {
+        for ((p, b), f) in pressure.iter_mut().zip(&self.base).zip(free) {
+            *p = if *f > 0.0 { *p + b } else { 0.0 };
+        }
+    }
+
+    /// Keeps the total pressure's force per unit mass for the next step: `correction`
+    /// where `layer` marks it set, else zero.
+    pub(super) fn keep_pressure_force(&mut self, correction: &[Vector<D>], layer: &[u8]) {
+        for ((a, c), l) in self.pressure_force.iter_mut().zip(correction).zip(layer) {
+            *a = if *l != u8::MAX {
+                *c
+            } else {
+                Vector::<D>::zeros()
+            };
+        }
+    }
+
+    /// Forgets the last pressure force (a checkpoint: the resumed run does not have it).
+    pub(super) fn forget_pressure_force(&mut self) {
+        self.pressure_force.fill(Vector::<D>::zeros());
+        self.base.fill(0.0);
     }
 
     /// The particles' coefficients 2 μ_p V_p, μ_p from each liquid at its particles' state
@@ -487,6 +543,93 @@ impl<const D: usize> ImplicitViscosity<D> {
             for d in 0..D {
                 v[d] += delta[i * D + d];
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small pseudo-random sequence in [-1, 1).
+    fn numbers(seed: u64, n: usize) -> Vec<f64> {
+        let mut state = seed;
+        (0..n)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            })
+            .collect()
+    }
+
+    /// P A P is symmetric and positive definite on the free subspace with a stick ghost,
+    /// a symmetry ghost, fixed components and a general normal.
+    #[test]
+    fn operator_is_symmetric_positive_definite() {
+        let nodes = 12;
+        let particles = 5;
+        let stencil = 4;
+        let r = numbers(7, particles * stencil * 3);
+        let interp = Interpolation::<2> {
+            stencil,
+            node: (0..particles * stencil)
+                .map(|e| ((r[3 * e] + 1.0) * 0.5 * nodes as f64).min(nodes as f64 - 1.0) as u32)
+                .collect(),
+            weight: vec![0.25; particles * stencil],
+            gradient: (0..particles * stencil)
+                .map(|e| Vector::<2>::new(r[3 * e + 1] * 100.0, r[3 * e + 2] * 100.0))
+                .collect(),
+        };
+        let mut mask = vec![1.0; nodes * 2];
+        // Ghosts 0 and 1 (no mass, no unknowns), node 2 stuck, node 3 held along y.
+        mask[0..4].fill(0.0);
+        mask[4..6].fill(0.0);
+        mask[7] = 0.0;
+        let mut mass_rate: Vec<f64> = numbers(3, nodes).iter().map(|m| 2.0 + m).collect();
+        mass_rate[0] = 0.0;
+        mass_rate[1] = 0.0;
+        let op = Operator::<2> {
+            interp,
+            coefficient: numbers(5, particles).iter().map(|c| 1.5 + c).collect(),
+            mass_rate,
+            mirrors: vec![
+                Mirror {
+                    ghost: 0,
+                    front: 5,
+                    axis: 1,
+                    symmetry: false,
+                },
+                Mirror {
+                    ghost: 1,
+                    front: 6,
+                    axis: 0,
+                    symmetry: true,
+                },
+            ],
+            mask,
+            normals: vec![(8, Vector::<2>::new(0.6, 0.8))],
+        };
+        let mut scratch = Scratch::<2> {
+            full: vec![0.0; nodes * 2],
+            stress: vec![Matrix::<2>::zeros(); particles],
+        };
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        for seed in 0..4 {
+            let x = numbers(100 + seed, nodes * 2);
+            let y = numbers(200 + seed, nodes * 2);
+            let (mut ax, mut ay) = (vec![0.0; nodes * 2], vec![0.0; nodes * 2]);
+            op.apply(&x, &mut ax, &mut scratch);
+            op.apply(&y, &mut ay, &mut scratch);
+            let (xay, yax) = (dot(&x, &ay), dot(&y, &ax));
+            assert!(
+                (xay - yax).abs() <= 1e-12 * xay.abs().max(yax.abs()),
+                "{xay} vs {yax}"
+            );
+            let mut px = x.clone();
+            op.project(&mut px);
+            assert!(dot(&px, &ax) > 0.0);
         }
     }
 }
