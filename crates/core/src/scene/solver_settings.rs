@@ -128,9 +128,10 @@ pub enum Mechanics {
     /// explicit stable step. For stiff, slow processes (cure, cool-down, thermal cycling).
     Implicit(ImplicitSettings),
     /// Incompressible liquid: a fractional-step (Chorin) projection every step. Body and
-    /// viscous forces act explicitly, then a pressure Poisson equation on the grid makes
-    /// the nodal velocity (nearly) divergence-free; the step is bounded by the velocity
-    /// CFL and the explicit viscous limit, not by a sound speed. Every material of the
+    /// viscous forces act explicitly (or the viscous ones implicitly, `viscosity:
+    /// "implicit"`), then a pressure Poisson equation on the grid makes the nodal velocity
+    /// (nearly) divergence-free; the step is bounded by the velocity CFL and, with explicit
+    /// viscosity, the viscous limit, not by a sound speed. Every material of the
     /// scene must be a liquid (e.g. type `liquid`).
     Incompressible(IncompressibleSettings),
 }
@@ -149,8 +150,9 @@ pub struct IncompressibleSettings {
     /// How the liquids' viscous stress acts: `explicit` (the default) as a force from the
     /// last step's velocity gradient, with the step bounded by ρ·dx²/(2·D·μ); `implicit` as
     /// a backward-Euler viscous solve on the grid before the pressure projection
-    /// (Jacobi-preconditioned CG with `tolerance` and `max_iterations`), with no viscous
-    /// bound on the step.
+    /// (Jacobi-preconditioned CG with `tolerance` and `max_iterations`) and an
+    /// incremental projection (the Poisson equation solves for the pressure change), with
+    /// no viscous bound on the step.
     #[serde(default)]
     pub viscosity: ViscousIntegration,
 }
