@@ -102,6 +102,20 @@ pub struct TangentBatch<'a, const D: usize> {
     pub stress_change: &'a mut [Matrix<D>],
 }
 
+/// What a liquid sees to give its particles' dynamic viscosities: the incompressible
+/// mode's implicit viscous solve (`viscosity: "implicit"`) evaluates them at the state
+/// the step starts from (the last step's velocity gradient, temperature and cure) and
+/// keeps them through the step (lagged one step, a Picard iteration over steps).
+pub struct ViscosityBatch<'a, const D: usize> {
+    /// Velocity gradient of the last step; empty unless the law asked for it
+    /// ([`ConstitutiveLaw::needs_velocity_gradient`]).
+    pub velocity_gradient: &'a [Matrix<D>],
+    /// The shared fields the law reads, as in [`StressBatch::shared`].
+    pub shared: [&'a [f64]; MAX_SHARED_READS],
+    /// Where the law writes each particle's dynamic viscosity, Pa·s.
+    pub viscosity: &'a mut [f64],
+}
+
 /// What a batch update reports back for diagnostics and the time step.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BatchStats {
@@ -173,6 +187,15 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn surface_tension(&self) -> f64 {
         0.0
     }
+    /// Each particle's dynamic viscosity, Pa·s, for the incompressible mode's implicit
+    /// viscous solve; a liquid's `update_stress` must give the stress 2μ·dev(sym L) with
+    /// the same μ at the same state. The default writes the bound
+    /// [`ConstitutiveLaw::liquid_viscosity`] (0 for a solid) for every particle, right for
+    /// a Newtonian liquid; a law whose viscosity depends on the state overrides it.
+    fn liquid_viscosities<const D: usize>(&self, batch: ViscosityBatch<'_, D>) {
+        let mu = self.liquid_viscosity().unwrap_or(0.0);
+        batch.viscosity.fill(mu);
+    }
     /// With `solver.free_strain_2d: "plane_strain"`, the factor by which a 2D scene's
     /// isotropic free strain (thermal expansion, cure shrinkage) acts in the plane, standing
     /// in for the out-of-plane part the held third direction turns into in-plane stress:
@@ -209,6 +232,10 @@ pub trait Material: Send + Sync {
     fn liquid_viscosity(&self) -> Option<f64>;
     /// See [`ConstitutiveLaw::surface_tension`].
     fn surface_tension(&self) -> f64;
+    /// 2D [`ConstitutiveLaw::liquid_viscosities`].
+    fn liquid_viscosities_2d(&self, batch: ViscosityBatch<'_, 2>);
+    /// 3D [`ConstitutiveLaw::liquid_viscosities`].
+    fn liquid_viscosities_3d(&self, batch: ViscosityBatch<'_, 3>);
     /// See [`ConstitutiveLaw::plane_strain_expansion`].
     fn plane_strain_expansion(&self) -> f64;
 }
@@ -249,6 +276,12 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn surface_tension(&self) -> f64 {
         ConstitutiveLaw::surface_tension(self)
+    }
+    fn liquid_viscosities_2d(&self, batch: ViscosityBatch<'_, 2>) {
+        self.liquid_viscosities::<2>(batch)
+    }
+    fn liquid_viscosities_3d(&self, batch: ViscosityBatch<'_, 3>) {
+        self.liquid_viscosities::<3>(batch)
     }
     fn plane_strain_expansion(&self) -> f64 {
         ConstitutiveLaw::plane_strain_expansion(self)

@@ -7,6 +7,7 @@
 use crate::viscosity::Viscosity;
 use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, Material, SharedRead, StressBatch,
+    ViscosityBatch,
 };
 use mpm_core::math::{Matrix, trace};
 use mpm_core::scene::Issue;
@@ -70,6 +71,22 @@ impl Liquid {
             max_viscosity: AtomicU64::new(mu.to_bits()),
         }
     }
+
+    /// The deviatoric rate dev(sym L) of a velocity gradient and the viscosity at it, at
+    /// temperature `t` and cure `a`: the one place `update_stress` and
+    /// `liquid_viscosities` evaluate the law, so both give the same μ at the same state.
+    #[inline]
+    fn rate_and_viscosity<const D: usize>(
+        &self,
+        l: &Matrix<D>,
+        t: f64,
+        a: f64,
+    ) -> (Matrix<D>, f64) {
+        let rate = (l + l.transpose()) * 0.5;
+        let dev = rate - Matrix::<D>::identity() * (trace(&rate) / D as f64);
+        let shear_rate = (2.0 * dev.norm_squared()).sqrt();
+        (dev, self.params.viscosity.at(t, shear_rate, a))
+    }
 }
 
 impl ConstitutiveLaw for Liquid {
@@ -91,7 +108,6 @@ impl ConstitutiveLaw for Liquid {
 
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let [temperature, cure, ..] = batch.shared;
-        let law = &self.params.viscosity;
         let mut largest = 0.0f64;
         for (p, stress) in batch.stress.iter_mut().enumerate() {
             let l = batch
@@ -99,15 +115,12 @@ impl ConstitutiveLaw for Liquid {
                 .get(p)
                 .copied()
                 .unwrap_or_else(Matrix::<D>::zeros);
-            let rate = (l + l.transpose()) * 0.5;
-            let dev = rate - Matrix::<D>::identity() * (trace(&rate) / D as f64);
-            let shear_rate = (2.0 * dev.norm_squared()).sqrt();
             let t = temperature
                 .get(p)
                 .copied()
                 .unwrap_or(self.params.temperature);
             let a = cure.get(p).copied().unwrap_or(0.0);
-            let mu = law.at(t, shear_rate, a);
+            let (dev, mu) = self.rate_and_viscosity(&l, t, a);
             largest = largest.max(mu);
             *stress = dev * (2.0 * mu);
         }
@@ -127,6 +140,25 @@ impl ConstitutiveLaw for Liquid {
 
     fn surface_tension(&self) -> f64 {
         self.params.surface_tension
+    }
+
+    /// The viscosity `update_stress` uses, at the particles' last velocity gradient,
+    /// temperature and cure.
+    fn liquid_viscosities<const D: usize>(&self, batch: ViscosityBatch<'_, D>) {
+        let [temperature, cure, ..] = batch.shared;
+        for (p, mu) in batch.viscosity.iter_mut().enumerate() {
+            let l = batch
+                .velocity_gradient
+                .get(p)
+                .copied()
+                .unwrap_or_else(Matrix::<D>::zeros);
+            let t = temperature
+                .get(p)
+                .copied()
+                .unwrap_or(self.params.temperature);
+            let a = cure.get(p).copied().unwrap_or(0.0);
+            *mu = self.rate_and_viscosity(&l, t, a).1;
+        }
     }
 }
 

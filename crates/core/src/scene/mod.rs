@@ -28,7 +28,7 @@ pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, Output, StopCriteria};
 pub use solver_settings::{
     AntiLocking, FreeStrain2d, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName,
-    KrylovMethod, Mechanics, Scheme, Solver, TangentMethod, Transfer,
+    KrylovMethod, Mechanics, Scheme, Solver, TangentMethod, Transfer, ViscousIntegration,
 };
 pub use stages::{FIXED_ACROSS_STAGES, RemoveParticles, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{

@@ -45,7 +45,7 @@ mod timestep;
 mod volume_averaging;
 
 use crate::kernels::{CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp};
-use crate::material::{BatchStats, Material, StressBatch, TangentBatch};
+use crate::material::{BatchStats, Material, StressBatch, TangentBatch, ViscosityBatch};
 use crate::output::{Metrics, OutputError, OutputSink};
 use crate::physics::{Physics, PhysicsContext, Stage};
 use crate::reference::{Frame as ReferenceFrame, Reference};
@@ -63,6 +63,8 @@ pub trait DimensionDispatch<const D: usize> {
     fn update(&self, batch: StressBatch<'_, D>) -> BatchStats;
     /// The stress derivative of one batch (laws that have one).
     fn derivative(&self, batch: TangentBatch<'_, D>);
+    /// A liquid's particle viscosities of one batch.
+    fn viscosities(&self, batch: ViscosityBatch<'_, D>);
     /// Runs one stage of a physics operator.
     fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, D>);
     /// A physics operator's stable step.
@@ -77,6 +79,9 @@ impl DimensionDispatch<2> for dyn Material {
     }
     fn derivative(&self, batch: TangentBatch<'_, 2>) {
         self.stress_derivative_2d(batch)
+    }
+    fn viscosities(&self, batch: ViscosityBatch<'_, 2>) {
+        self.liquid_viscosities_2d(batch)
     }
     fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, 2>) {
         physics.stage_2d(stage, ctx)
@@ -95,6 +100,9 @@ impl DimensionDispatch<3> for dyn Material {
     }
     fn derivative(&self, batch: TangentBatch<'_, 3>) {
         self.stress_derivative_3d(batch)
+    }
+    fn viscosities(&self, batch: ViscosityBatch<'_, 3>) {
+        self.liquid_viscosities_3d(batch)
     }
     fn physics_stage(physics: &dyn Physics, stage: Stage, ctx: PhysicsContext<'_, 3>) {
         physics.stage_3d(stage, ctx)

@@ -19,6 +19,9 @@ use rayon::prelude::*;
 pub(crate) enum ForceTerm {
     /// No stress term (velocity remaps).
     None,
+    /// Gravity only, no stress term: the incompressible mode with implicit viscosity, whose
+    /// liquids' (viscous) stress is solved for on the grid instead.
+    Body,
     /// f_i = -Σ V_p σ_p ∇w_ip.
     Standard,
     /// MLS-MPM: the stress enters the affine momentum, f_i = -Σ V_p σ_p D⁻¹ (x_i - x_p) w_ip.
@@ -88,7 +91,7 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
                     // Standard force per unit weight gradient (grid units).
                     let mut s = Matrix::<D>::zeros();
                     match params.force {
-                        ForceTerm::None => {}
+                        ForceTerm::None | ForceTerm::Body => {}
                         ForceTerm::Standard => {
                             let f = &particles.deformation_gradient[p];
                             let volume = particles.volume0[p] * determinant(f);

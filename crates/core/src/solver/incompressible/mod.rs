@@ -35,13 +35,17 @@
 //! D·M⁻¹·G, not under ∫∇N·∇N). The price: ∇·v is small, not zero, at the discrete level.
 //!
 //! The step is bounded by the velocity CFL, dx/(|v|max + √(dx·|g|)), and, with viscosity explicit, by
-//! ρ·dx²/(2·D·μ); never by a sound speed.
+//! ρ·dx²/(2·D·μ); never by a sound speed. With `viscosity: "implicit"` P2G leaves the
+//! viscous stress out and a backward-Euler viscous solve on the grid (viscosity.rs) acts
+//! between steps 1 and 2; the viscous bound then goes.
 
 mod surface_tension;
+mod viscosity;
 
 use super::DimensionDispatch;
 use super::grid_update::{GridParams, update_grid};
 use super::mode::StepMode;
+use super::particle_to_grid::ForceTerm;
 use super::simulation::Simulation;
 use crate::boundary::Boundaries;
 use crate::grid::{node_coords, node_position};
@@ -50,7 +54,7 @@ use crate::linear_solvers::conjugate_gradient::{Work, solve};
 use crate::material::Material;
 use crate::math::{Matrix, Vector};
 use crate::physics::PhysicsFault;
-use crate::scene::{IncompressibleSettings, Transfer};
+use crate::scene::{IncompressibleSettings, Transfer, ViscousIntegration};
 use surface_tension::SurfaceTension;
 
 /// Corners of a cell (2^D, at most 8).
@@ -94,11 +98,15 @@ pub(super) struct Incompressible<const D: usize> {
     z: Vec<f64>,
     p: Vec<f64>,
     ap: Vec<f64>,
+    /// The implicit viscous step (`viscosity: "implicit"`), else `None`.
+    viscosity: Option<viscosity::ImplicitViscosity<D>>,
 }
 
 impl<const D: usize> Incompressible<D> {
     pub(super) fn new(settings: IncompressibleSettings) -> Self {
         Self {
+            viscosity: (settings.viscosity == ViscousIntegration::Implicit)
+                .then(viscosity::ImplicitViscosity::default),
             settings,
             stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
             gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
@@ -229,11 +237,21 @@ where
     fn advance(&mut self, sim: &mut Simulation<D, K>, dt: f64) {
         sim.reorder_if_due();
         sim.bins.rebuild::<D, K>(&sim.grid, &sim.particles);
-        let force = sim.force_term();
+        // With implicit viscosity the liquids' stress is solved for, not scattered.
+        let force = if self.viscosity.is_some() {
+            ForceTerm::Body
+        } else {
+            sim.force_term()
+        };
         sim.grid.clear();
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.add_pressure_force(&mut self.free_velocity, &mut self.pressure, dt);
+            viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity);
+        }
         self.project(sim, dt);
+        self.incremental_pressure(&sim.grid);
         sim.g2p(dt, true, true, true);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
         // particle volume stays its reference volume and F cannot degenerate.
@@ -247,8 +265,13 @@ where
 
     /// The pressure solve is warm-started from the last pressure; a resumed run starts it
     /// cold, so the run that writes the checkpoint does too.
+    /// With implicit viscosity the last pressure force is forgotten too (the next step is
+    /// a plain projection), as a resumed run does not have it.
     fn save(&mut self, _checkpoint: &mut crate::checkpoint::Checkpoint) {
         self.pressure.iter_mut().for_each(|p| *p = 0.0);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.forget_pressure_force();
+        }
     }
 
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
@@ -258,7 +281,8 @@ where
         let g = sim.settings.gravity.norm();
         let convective = dx / (sim.kinematics.max_speed + (dx * g).sqrt()).max(1e-300);
         let mut viscous = f64::INFINITY;
-        for group in &sim.particles.groups {
+        let explicit = self.viscosity.is_none();
+        for group in sim.particles.groups.iter().filter(|_| explicit) {
             let mu = group.material.liquid_viscosity().unwrap_or(0.0);
             if mu > 0.0 {
                 let rho = group.material.density();
@@ -455,6 +479,22 @@ impl<const D: usize> Incompressible<D> {
             }
         }
         apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// With implicit viscosity the projection solved for the pressure increment: adds the
+    /// last pressure back (0 on the free surface) and keeps the total pressure's velocity
+    /// change per unit time, -(1/M_i) Σ_c ∫_c N_i ∇p (extrapolated as the projection's), for
+    /// the next step's viscous solve (see viscosity.rs). Nothing with explicit viscosity.
+    fn incremental_pressure(&mut self, grid: &crate::grid::Grid<D>) {
+        let Some(viscosity) = self.viscosity.as_mut() else {
+            return;
+        };
+        viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal);
+        self.pressure_correction(1.0, grid.dx);
+        self.extrapolate_correction(grid);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.keep_pressure_force(&self.correction, &self.layer);
+        }
     }
 
     /// The projection's velocity change at the nodes of the liquid cells:
