@@ -3,16 +3,7 @@
 
 mod common;
 
-use common::{invalid_example, load_example, run};
-
-fn comparison(m: &mpm_core::output::Metrics, name: &str) -> (f64, f64) {
-    let c = m
-        .comparisons
-        .iter()
-        .find(|c| c.quantity == name)
-        .unwrap_or_else(|| panic!("no comparison {name}: {:?}", m.comparisons));
-    (c.measured, c.reference)
-}
+use common::{comparison, invalid_example, load_example, run};
 
 #[test]
 fn a_drop_at_rest_carries_the_laplace_pressure() {

@@ -87,6 +87,28 @@ impl Liquid {
         let shear_rate = (2.0 * dev.norm_squared()).sqrt();
         (dev, self.params.viscosity.at(t, shear_rate, a))
     }
+
+    /// [`Self::rate_and_viscosity`] of particle `p` of a batch: its velocity gradient,
+    /// temperature and cure where the batch has them, else zero, `temperature`, 0.
+    #[inline]
+    fn at_particle<const D: usize>(
+        &self,
+        velocity_gradient: &[Matrix<D>],
+        temperature: &[f64],
+        cure: &[f64],
+        p: usize,
+    ) -> (Matrix<D>, f64) {
+        let l = velocity_gradient
+            .get(p)
+            .copied()
+            .unwrap_or_else(Matrix::<D>::zeros);
+        let t = temperature
+            .get(p)
+            .copied()
+            .unwrap_or(self.params.temperature);
+        let a = cure.get(p).copied().unwrap_or(0.0);
+        self.rate_and_viscosity(&l, t, a)
+    }
 }
 
 impl ConstitutiveLaw for Liquid {
@@ -110,17 +132,7 @@ impl ConstitutiveLaw for Liquid {
         let [temperature, cure, ..] = batch.shared;
         let mut largest = 0.0f64;
         for (p, stress) in batch.stress.iter_mut().enumerate() {
-            let l = batch
-                .velocity_gradient
-                .get(p)
-                .copied()
-                .unwrap_or_else(Matrix::<D>::zeros);
-            let t = temperature
-                .get(p)
-                .copied()
-                .unwrap_or(self.params.temperature);
-            let a = cure.get(p).copied().unwrap_or(0.0);
-            let (dev, mu) = self.rate_and_viscosity(&l, t, a);
+            let (dev, mu) = self.at_particle(batch.velocity_gradient, temperature, cure, p);
             largest = largest.max(mu);
             *stress = dev * (2.0 * mu);
         }
@@ -147,17 +159,9 @@ impl ConstitutiveLaw for Liquid {
     fn liquid_viscosities<const D: usize>(&self, batch: ViscosityBatch<'_, D>) {
         let [temperature, cure, ..] = batch.shared;
         for (p, mu) in batch.viscosity.iter_mut().enumerate() {
-            let l = batch
-                .velocity_gradient
-                .get(p)
-                .copied()
-                .unwrap_or_else(Matrix::<D>::zeros);
-            let t = temperature
-                .get(p)
-                .copied()
-                .unwrap_or(self.params.temperature);
-            let a = cure.get(p).copied().unwrap_or(0.0);
-            *mu = self.rate_and_viscosity(&l, t, a).1;
+            *mu = self
+                .at_particle(batch.velocity_gradient, temperature, cure, p)
+                .1;
         }
     }
 }

@@ -254,3 +254,14 @@ pub fn run_scene_json(dir: &Path, name: &str, scene: &serde_json::Value) -> serd
     assert!(out.status.success(), "{}", text(&out));
     serde_json::from_slice(&out.stdout).unwrap()
 }
+
+/// The measured and reference values of the run's comparison `name` (panics if missing).
+#[allow(dead_code)]
+pub fn comparison(m: &mpm_core::output::Metrics, name: &str) -> (f64, f64) {
+    let c = m
+        .comparisons
+        .iter()
+        .find(|c| c.quantity == name)
+        .unwrap_or_else(|| panic!("no comparison {name}: {:?}", m.comparisons));
+    (c.measured, c.reference)
+}

@@ -456,19 +456,12 @@ impl<const D: usize> Incompressible<D> {
                 converged: true,
             }
         };
-        sim.report
-            .record_max("incompressible.iterations", result.iterations as f64);
-        if !result.converged {
-            sim.report.fail(PhysicsFault {
-                field: "pressure".into(),
-                particle: None,
-                value: result.iterations as f64,
-                message: format!(
-                    "the pressure solve did not converge in {} iterations (raise solver.mechanics.incompressible.max_iterations or the tolerance)",
-                    self.settings.max_iterations
-                ),
-            });
-        }
+        report_solve(
+            &mut sim.report,
+            result,
+            ("incompressible.iterations", "pressure", "pressure solve"),
+            self.settings.max_iterations,
+        );
         self.pressure_correction(dt, sim.grid.dx);
         self.extrapolate_correction(&sim.grid);
         // Projection of the velocity before the walls, then the walls.
@@ -634,6 +627,27 @@ impl<const D: usize> Incompressible<D> {
                 out[k] = value;
             }
         }
+    }
+}
+
+/// Records a linear solve's iterations under `key` and stops the run with a diagnostic
+/// on `field` when it did not converge (`what` names the solve in the message).
+fn report_solve(
+    report: &mut crate::physics::PhysicsReport,
+    result: crate::linear_solvers::conjugate_gradient::Solve,
+    (key, field, what): (&str, &str, &str),
+    max_iterations: u32,
+) {
+    report.record_max(key, result.iterations as f64);
+    if !result.converged {
+        report.fail(PhysicsFault {
+            field: field.into(),
+            particle: None,
+            value: result.iterations as f64,
+            message: format!(
+                "the {what} did not converge in {max_iterations} iterations (raise solver.mechanics.incompressible.max_iterations or the tolerance)"
+            ),
+        });
     }
 }
 

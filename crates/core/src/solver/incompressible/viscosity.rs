@@ -523,21 +523,16 @@ impl<const D: usize> ImplicitViscosity<D> {
                 converged: true,
             }
         };
-        sim.report.record_max(
-            "incompressible.viscous_iterations",
-            result.iterations as f64,
+        super::report_solve(
+            &mut sim.report,
+            result,
+            (
+                "incompressible.viscous_iterations",
+                "velocity",
+                "implicit viscous solve",
+            ),
+            settings.max_iterations,
         );
-        if !result.converged {
-            sim.report.fail(PhysicsFault {
-                field: "velocity".into(),
-                particle: None,
-                value: result.iterations as f64,
-                message: format!(
-                    "the implicit viscous solve did not converge in {} iterations (raise solver.mechanics.incompressible.max_iterations or the tolerance)",
-                    settings.max_iterations
-                ),
-            });
-        }
         operator.project(delta);
         for (i, v) in velocity.iter_mut().enumerate() {
             for d in 0..D {
