@@ -100,6 +100,17 @@ impl WallRule {
     }
 }
 
+/// A wall's node plane (for the surface-tension colour field, mirrored across every wall).
+#[derive(Clone, Copy, Debug)]
+pub struct WallPlane {
+    /// Axis of the wall's normal.
+    pub axis: usize,
+    /// Whether the wall is on the upper face of the axis.
+    pub upper: bool,
+    /// Node index along `axis` of the wall's surface; nodes beyond it are behind the wall.
+    pub surface: usize,
+}
+
 /// Cells of grid beyond each domain face: room for every kernel's stencil and for the ghost
 /// nodes of stick walls.
 pub const GRID_PADDING: usize = 2;
@@ -290,6 +301,15 @@ impl<const D: usize> Boundaries<D> {
             .obstacles
             .iter()
             .any(|o| o.solid.distance_and_normal(centre).0 < 0.0)
+    }
+
+    /// Every wall's node plane.
+    pub fn wall_planes(&self) -> impl Iterator<Item = WallPlane> + '_ {
+        self.walls.iter().map(|w| WallPlane {
+            axis: w.axis,
+            upper: w.upper,
+            surface: w.surface,
+        })
     }
 
     /// Whether there is nothing to apply.

@@ -145,7 +145,13 @@ impl<const D: usize> Incompressible<D> {
         self.surface = groups
             .iter()
             .find(|g| g.material.surface_tension() > 0.0)
-            .map(|g| SurfaceTension::new(g.material.surface_tension(), g.material.density()));
+            .map(|g| {
+                SurfaceTension::new(
+                    g.material.surface_tension(),
+                    g.material.density(),
+                    boundaries.wall_planes().collect(),
+                )
+            });
         let dx = grid.dx;
         let corners = 1 << D;
         // 1D factors on [0, 1]: φ0 = 1 - s, φ1 = s.
