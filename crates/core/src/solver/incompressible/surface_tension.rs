@@ -18,7 +18,7 @@
 //! Explicit in the surface's shape, so the step is bounded by a capillary wave limit:
 //! dt ≤ √(ρ·dx³ / (25π·σ)), 0.4 times Brackbill et al.'s √(ρ̄·dx³/(2πσ)) with ρ̄ = ρ/2
 //! (the mean of the liquid's and the void's densities). The textbook bound times the
-//! scene's `cfl` 0.5 let a drop 20 cells across lose its pressure within 0.05 s; 0.4 of
+//! scene's `cfl` 0.5 let a drop of radius 20 cells lose its pressure within 0.05 s; 0.4 of
 //! it (the same as `cfl` 0.2) keeps it within 0.4%.
 use crate::boundary::WallPlane;
 use crate::grid::{Grid, node_coords};
