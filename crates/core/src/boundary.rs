@@ -111,6 +111,22 @@ pub struct WallPlane {
     pub surface: usize,
 }
 
+/// The (ghost, front) node indices along a wall's axis, nearest the surface first: the
+/// node `k` behind the wall plane `surface` and its mirror `k` in front, for as long as
+/// both lie among the axis's `n` nodes.
+pub fn mirror_pairs(upper: bool, surface: usize, n: usize) -> impl Iterator<Item = (usize, usize)> {
+    let depth = if upper { n - 1 - surface } else { surface };
+    (1..=depth)
+        .map(move |k| {
+            if upper {
+                (surface + k, surface.checked_sub(k))
+            } else {
+                (surface - k, (surface + k < n).then_some(surface + k))
+            }
+        })
+        .map_while(|(ghost, front)| front.map(|front| (ghost, front)))
+}
+
 /// Cells of grid beyond each domain face: room for every kernel's stencil and for the ghost
 /// nodes of stick walls.
 pub const GRID_PADDING: usize = 2;
@@ -420,16 +436,7 @@ impl<const D: usize> Boundaries<D> {
         {
             let symmetry = wall.contact == Contact::Symmetry;
             let a = wall.axis;
-            let n = nodes[a];
-            let s = wall.surface;
-            let depth = if wall.upper { n - 1 - s } else { s };
-            for k in 1..=depth {
-                let (ghost, front) = if wall.upper {
-                    (s + k, s.checked_sub(k))
-                } else {
-                    (s - k, (s + k < n).then_some(s + k))
-                };
-                let Some(front) = front else { break };
+            for (ghost, front) in mirror_pairs(wall.upper, wall.surface, nodes[a]) {
                 f(a, ghost, front, symmetry);
             }
         }

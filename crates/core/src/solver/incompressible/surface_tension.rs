@@ -20,7 +20,7 @@
 //! (the mean of the liquid's and the void's densities). The textbook bound times the
 //! scene's `cfl` 0.5 let a drop of radius 20 cells lose its pressure within 0.05 s; 0.4 of
 //! it (the same as `cfl` 0.2) keeps it within 0.4%.
-use crate::boundary::WallPlane;
+use crate::boundary::{WallPlane, mirror_pairs};
 use crate::grid::{Grid, node_coords};
 use crate::math::Vector;
 
@@ -149,8 +149,6 @@ impl<const D: usize> SurfaceTension<D> {
     fn mirror_walls(&mut self, grid: &Grid<D>, fold: bool) {
         for wall in &self.walls {
             let (a, s) = (wall.axis, wall.surface);
-            let n = grid.nodes[a];
-            let depth = if wall.upper { n - 1 - s } else { s };
             for i in 0..grid.len() {
                 if node_coords(&grid.stride, i)[a] != s {
                     continue;
@@ -160,13 +158,7 @@ impl<const D: usize> SurfaceTension<D> {
                 if fold {
                     self.colour[i] *= 2.0;
                 }
-                for k in 1..=depth {
-                    let (ghost, front) = if wall.upper {
-                        (s + k, s.checked_sub(k))
-                    } else {
-                        (s - k, (s + k < n).then_some(s + k))
-                    };
-                    let Some(front) = front else { break };
+                for (ghost, front) in mirror_pairs(wall.upper, s, grid.nodes[a]) {
                     if fold {
                         self.colour[node(front)] += self.colour[node(ghost)];
                     }
