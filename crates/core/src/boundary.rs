@@ -79,6 +79,8 @@ struct WallRule {
     upper: bool,
     surface: usize,
     contact: Contact,
+    /// Static contact angle of a liquid on the wall, radians (90° without one).
+    contact_angle: f64,
 }
 
 impl WallRule {
@@ -100,7 +102,8 @@ impl WallRule {
     }
 }
 
-/// A wall's node plane (for the surface-tension colour field, mirrored across every wall).
+/// A wall's node plane and contact angle (for the surface-tension colour field, extended
+/// across every wall).
 #[derive(Clone, Copy, Debug)]
 pub struct WallPlane {
     /// Axis of the wall's normal.
@@ -109,6 +112,8 @@ pub struct WallPlane {
     pub upper: bool,
     /// Node index along `axis` of the wall's surface; nodes beyond it are behind the wall.
     pub surface: usize,
+    /// Static contact angle of a liquid on the wall, radians, measured through the liquid.
+    pub contact_angle: f64,
 }
 
 /// The (ghost, front) node indices along a wall's axis, nearest the surface first: the
@@ -187,7 +192,8 @@ impl<const D: usize> Solid<D> {
                 for d in 0..D {
                     let below = min[d] - x[d];
                     let above = x[d] - max[d];
-                    outside[d] = below.max(above).max(0.0);
+                    // Signed: a point below `min` is outside on the side of −axis.
+                    outside[d] = if below > 0.0 { -below } else { above.max(0.0) };
                     let (depth, sign) = if below > above {
                         (below, -1.0)
                     } else {
@@ -257,6 +263,7 @@ impl<const D: usize> Boundaries<D> {
                     upper,
                     surface,
                     contact: wall.condition,
+                    contact_angle: wall.contact_angle.unwrap_or(90.0).to_radians(),
                 });
             }
         }
@@ -325,6 +332,7 @@ impl<const D: usize> Boundaries<D> {
             axis: w.axis,
             upper: w.upper,
             surface: w.surface,
+            contact_angle: w.contact_angle,
         })
     }
 
@@ -590,5 +598,9 @@ mod tests {
         let (phi, n) = solid.distance_and_normal(&Vector::<2>::new(0.5, 2.5));
         assert!((phi - 0.5).abs() < 1e-12);
         assert_eq!(n, Vector::<2>::new(0.0, 1.0));
+        // Below the lower corner the outward normal points along −axis.
+        let (phi, n) = solid.distance_and_normal(&Vector::<2>::new(-0.25, 1.0));
+        assert!((phi - 0.25).abs() < 1e-12);
+        assert_eq!(n, Vector::<2>::new(-1.0, 0.0));
     }
 }

@@ -30,6 +30,7 @@ mod hele_shaw;
 mod lattice;
 mod liquid;
 mod liquid_references;
+mod meniscus_reference;
 mod parameters;
 mod underfill;
 mod viscosity;
@@ -74,6 +75,7 @@ impl Plugin for UnderfillPlugin {
         let mut references = vec![capillary_filling::factory()];
         references.extend(liquid_references::factories());
         references.extend(capillary_references::factories());
+        references.extend(meniscus_reference::factories());
         references
     }
 }

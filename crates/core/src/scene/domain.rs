@@ -71,6 +71,11 @@ pub struct Wall {
     /// ghost nodes behind the surface mirrored velocities, so the clamp is exact there.
     #[serde(default = "default_wall_thickness")]
     pub thickness: u32,
+    /// Static contact angle, degrees, of a liquid with surface tension on this wall,
+    /// measured through the liquid (below 90 the liquid wets the wall and climbs it).
+    /// Without it the liquid meets the wall at 90°.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_angle: Option<f64>,
 }
 
 fn default_wall_thickness() -> u32 {
@@ -159,7 +164,17 @@ impl Domain {
                 );
             }
             w.condition.validate(v, &format!("{path}.condition"));
+            validate_contact_angle(v, &format!("{path}.contact_angle"), w.contact_angle);
         }
+    }
+}
+
+/// Checks a wall's or an obstacle's static contact angle (degrees) at `path`.
+pub(super) fn validate_contact_angle(v: &mut Validator, path: &str, angle: Option<f64>) {
+    if let Some(angle) = angle
+        && !(angle.is_finite() && angle > 0.0 && angle < 180.0)
+    {
+        v.err(path, "must lie strictly between 0 and 180 degrees");
     }
 }
 
