@@ -195,6 +195,16 @@ fn contact_angles_are_checked() {
             "{angle}: {issues:?}"
         );
     }
+    let issues = invalid_example(
+        "liquid-meniscus.json",
+        &["materials.water.surface_tension=0", "reference=null"],
+    );
+    assert!(
+        issues
+            .iter()
+            .any(|i| i.starts_with("domain.walls[0].contact_angle")),
+        "{issues:?}"
+    );
     let issues = invalid_example("liquid-meniscus.json", &["reference.contact_angle=90"]);
     assert!(
         issues

@@ -339,6 +339,16 @@ impl Validator {
                 _ => {}
             }
         }
+        if tension.is_none() {
+            for (i, wall) in s.domain.walls.iter().enumerate() {
+                if wall.contact_angle.is_some() {
+                    self.err(
+                        format!("domain.walls[{i}].contact_angle"),
+                        "a contact angle acts on a liquid with surface tension, and no material here has one (give a `liquid` a `surface_tension`, or remove the angle)",
+                    );
+                }
+            }
+        }
         if let (Some((name, _)), Mechanics::Incompressible(settings)) =
             (tension, &s.solver.mechanics)
             && settings.viscosity == crate::scene::ViscousIntegration::Implicit
