@@ -68,22 +68,11 @@ impl ReferenceLaw for LaplaceDrop {
         };
         let mut l2 = RelativeL2::default();
         let (mut sum, mut count) = (0.0, 0usize);
-        for group in &particles.groups {
-            let Some(field) = group
-                .material
-                .state_fields()
-                .iter()
-                .position(|f| f.name == "pressure")
-            else {
-                continue;
-            };
-            for (k, i) in group.range.clone().enumerate() {
-                if distance(i) < p.inner_fraction * p.radius {
-                    let pressure = group.state[field][k];
-                    l2.add((pressure - exact).powi(2), exact * exact);
-                    sum += pressure;
-                    count += 1;
-                }
+        for (i, pressure) in crate::liquid_references::pressures(particles) {
+            if distance(i) < p.inner_fraction * p.radius {
+                l2.add((pressure - exact).powi(2), exact * exact);
+                sum += pressure;
+                count += 1;
             }
         }
         let farthest = (0..particles.len()).map(distance).fold(0.0, f64::max);

@@ -37,8 +37,9 @@ struct Hydrostatic {
     comparisons: Vec<Comparison>,
 }
 
-/// The `pressure` values of every liquid particle, with their storage indices.
-fn pressures<'a, const D: usize>(
+/// The `pressure` values of every liquid particle, with their storage indices (the
+/// liquid references of this plugin read them through this one place).
+pub(crate) fn pressures<'a, const D: usize>(
     particles: &'a mpm_core::particles::Particles<D>,
 ) -> impl Iterator<Item = (usize, f64)> + 'a {
     particles.groups.iter().flat_map(|g| {

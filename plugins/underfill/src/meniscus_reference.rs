@@ -124,23 +124,12 @@ impl ReferenceLaw for Meniscus {
         let particles = frame.particles;
         let mut l2 = RelativeL2::default();
         let (mut sum, mut count) = (0.0, 0usize);
-        for group in &particles.groups {
-            let Some(field) = group
-                .material
-                .state_fields()
-                .iter()
-                .position(|f| f.name == "pressure")
-            else {
-                continue;
-            };
-            for (k, i) in group.range.clone().enumerate() {
-                let x = &particles.position[i];
-                if x[p.up] < p.below && x[p.across] > p.plates[0] && x[p.across] < p.plates[1] {
-                    let pressure = group.state[field][k];
-                    l2.add((pressure - exact).powi(2), exact * exact);
-                    sum += pressure;
-                    count += 1;
-                }
+        for (i, pressure) in crate::liquid_references::pressures(particles) {
+            let x = &particles.position[i];
+            if x[p.up] < p.below && x[p.across] > p.plates[0] && x[p.across] < p.plates[1] {
+                l2.add((pressure - exact).powi(2), exact * exact);
+                sum += pressure;
+                count += 1;
             }
         }
         self.error = l2.value();
