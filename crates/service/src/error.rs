@@ -21,6 +21,10 @@ pub enum ServiceError {
     /// A migration failed.
     #[error("job database migration: {0}")]
     Migration(#[from] sqlx::migrate::MigrateError),
+    /// The result store could not be opened (a missing bucket, an unreachable server, a
+    /// folder that cannot be created).
+    #[error("result store: {0}")]
+    Store(#[from] crate::StoreError),
 }
 
 /// One problem in a request, at a JSON path of the submitted scene when there is one.

@@ -6,9 +6,9 @@
 use crate::State;
 use crate::child::ChildEnd;
 use crate::db::Claimed;
+use crate::results_store::JobSync;
 use mpm_core::solver::{Control, Progress, RunError};
 use std::collections::HashMap;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -58,11 +58,6 @@ impl JobBoard {
             flag.store(true, Ordering::Relaxed);
         }
     }
-}
-
-/// Where a job's results live: `<store>/<id>/results.zarr`.
-pub fn results_path(state: &State, id: &str) -> PathBuf {
-    state.config.store_root().join(id).join("results.zarr")
 }
 
 /// A name for this process's `n`th worker that is unique across machines:
@@ -195,6 +190,32 @@ async fn keep_lease(
     }
 }
 
+/// How often a running job's store is looked at for a new checkpoint to upload (S3).
+const CHECKPOINT_POLL: Duration = Duration::from_secs(1);
+
+/// Uploads a running job's store whenever it names a new checkpoint (S3 stores; a no-op
+/// for a folder), until `stop`; returns the mirror for the final upload.
+async fn upload_checkpoints(
+    mut sync: JobSync,
+    id: String,
+    mut stop: watch::Receiver<bool>,
+) -> JobSync {
+    if !sync.is_remote() {
+        return sync;
+    }
+    loop {
+        tokio::select! {
+            _ = tokio::time::sleep(CHECKPOINT_POLL) => {}
+            _ = stop.changed() => return sync,
+        }
+        match sync.checkpoint().await {
+            Ok(Some(step)) => tracing::info!(job = %id, step, "checkpoint uploaded"),
+            Ok(None) => {}
+            Err(e) => tracing::warn!(job = %id, error = %e, "uploading a checkpoint failed"),
+        }
+    }
+}
+
 async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     let Claimed {
         id,
@@ -203,6 +224,19 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         particles,
         ..
     } = claimed;
+    // With an S3 store, an earlier attempt's store (and checkpoint) comes down first.
+    let sync = match state.results.prepare(&id).await {
+        Ok(sync) => sync,
+        Err(e) => {
+            let failure = serde_json::json!({
+                "message": format!("fetching the job's store from the result store failed: {e}")
+            });
+            record_end(state, &id, worker, attempt, particles, ("failed", None, Some(failure.to_string()), None)).await;
+            return;
+        }
+    };
+    let (stop_uploads, uploads_stop) = watch::channel(false);
+    let uploads = tokio::spawn(upload_checkpoints(sync, id.clone(), uploads_stop));
     let flag = state.jobs.register(&id);
     let heartbeat = tokio::spawn(keep_lease(
         state.clone(),
@@ -226,13 +260,9 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     let last = Arc::new(Mutex::new((0u64, 0.0f64, 0.0f64)));
     let outcome = match &state.config.job_command {
         Some(command) => {
-            let job_dir = results_path(state, &id)
-                .parent()
-                .map(PathBuf::from)
-                .unwrap_or_default();
             crate::child::run_in_child(
                 command,
-                &job_dir,
+                &state.results.job_dir(&id),
                 &state.config.data_dir,
                 &scene,
                 flag.clone(),
@@ -251,9 +281,30 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         heartbeat.abort();
         false
     };
+    let _ = stop_uploads.send(true);
+    let sync = match uploads.await {
+        Ok(sync) => Some(sync),
+        Err(e) => {
+            tracing::error!(job = %id, error = %e, "the checkpoint uploads failed unexpectedly");
+            None
+        }
+    };
     if lost {
-        // Another worker may own the job now; nothing of this run is recorded.
+        // Another worker may own the job now; nothing of this run is recorded or uploaded.
+        if let Some(sync) = sync {
+            sync.discard().await;
+        }
         return;
+    }
+    // The store goes up before the job's end is recorded, so a finished job's store is
+    // whole when read; also when the job goes back to the queue (another machine resumes
+    // it from what was uploaded).
+    let uploaded = match sync {
+        Some(sync) => sync.finish().await.map_err(|e| e.to_string()),
+        None => Err("the upload task failed".to_string()),
+    };
+    if let Err(e) = &uploaded {
+        tracing::error!(job = %id, error = %e, "uploading the job's store failed");
     }
     let progress = *last.lock().expect("progress lock");
     let shutting_down = state.jobs.shutting_down.load(Ordering::Relaxed);
@@ -281,10 +332,37 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         ChildEnd::Crashed(_) if shutting_down => return,
         ChildEnd::Crashed(message) => ("failed", None, failed(message), Some(progress)),
     };
+    let (status, failure) = match uploaded {
+        Err(e) if status != "cancelled" => (
+            "failed",
+            failed(format!("the run ended but uploading its store failed: {e}")),
+        ),
+        _ => (status, failure),
+    };
+    record_end(state, &id, worker, attempt, particles, (status, metrics, failure, progress)).await;
+}
+
+/// What a run ends with: status, metrics, failure (JSON text) and last progress.
+type End = (
+    &'static str,
+    Option<String>,
+    Option<String>,
+    Option<(u64, f64, f64)>,
+);
+
+/// Records a run's end (under its lease) and logs it.
+async fn record_end(
+    state: &Arc<State>,
+    id: &str,
+    worker: &str,
+    attempt: i64,
+    particles: i64,
+    (status, metrics, failure, progress): End,
+) {
     let failure_message = failure.clone();
     match state
         .db
-        .finish(&id, worker, attempt, status, metrics, failure, progress)
+        .finish(id, worker, attempt, status, metrics, failure, progress)
         .await
     {
         Ok(true) => {
@@ -327,7 +405,7 @@ async fn run_in_process(
     tx: tokio::sync::mpsc::UnboundedSender<(u64, f64, f64)>,
     last: Arc<Mutex<(u64, f64, f64)>>,
 ) -> ChildEnd {
-    let store = results_path(state, id);
+    let store = state.results.results_dir(id);
     let registry = state.registry.clone();
     let data_dir = state.config.data_dir.clone();
     let limits = state.config.limits;
