@@ -1,0 +1,340 @@
+//! The job service with its results in an S3-compatible bucket and no shared folder: a real
+//! PostgreSQL and a real moto server (both started by the test on free loopback ports), one
+//! API process (`mpm serve --workers 0 --store s3://...`) and two `mpm worker` processes,
+//! each with its own scratch folder. One worker is killed with SIGKILL in the middle of a
+//! job after it uploaded a checkpoint; the other resumes the job from that checkpoint. Every
+//! store is then read back through the API. Skips (with a message) when PostgreSQL or
+//! `moto_server` is missing; `.ci/run` installs both.
+
+mod common;
+
+use common::moto::{Moto, moto_server};
+use common::postgres::{Postgres, postgres_bin};
+use common::*;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Small jobs submitted besides the one that is interrupted.
+const SMALL_JOBS: usize = 100;
+const BUCKET: &str = "mpm-results";
+const PREFIX: &str = "runs/test";
+
+fn client() -> reqwest::blocking::Client {
+    http_client(60)
+}
+
+fn submit(url: &str, scene: &Value) -> String {
+    let r = client()
+        .post(format!("{url}/v1/jobs"))
+        .json(scene)
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 202);
+    r.json::<Value>().unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string()
+}
+
+fn get_json(url: &str) -> Value {
+    client().get(url).send().unwrap().json().unwrap()
+}
+
+/// Downloads a job's whole store through the API (`/files`, then each file from
+/// `/results/...`, as a Zarr reader over HTTP would) into `to`.
+fn fetch_store(url: &str, id: &str, to: &Path) -> Vec<String> {
+    let files: Vec<String> = serde_json::from_value(
+        get_json(&format!("{url}/v1/jobs/{id}/files"))["files"].clone(),
+    )
+    .unwrap();
+    for file in &files {
+        let r = client()
+            .get(format!("{url}/v1/jobs/{id}/results/{file}"))
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), 200, "{file}");
+        let kind = r.headers()["content-type"].to_str().unwrap().to_string();
+        let expected = if file.ends_with(".json") {
+            "application/json"
+        } else {
+            "application/octet-stream"
+        };
+        assert_eq!(kind, expected, "{file}");
+        let path = to.join(file);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, r.bytes().unwrap()).unwrap();
+    }
+    files
+}
+
+/// `mpm serve` with a store that cannot be used exits 2 before listening, saying why.
+fn refused(args: &[&str], moto: &Moto, dir: &Path) -> String {
+    let out = moto
+        .env(&mut Command::new(env!("CARGO_BIN_EXE_mpm")))
+        .args(["serve", "--listen", "127.0.0.1:0", "--workers", "0"])
+        .arg("--data")
+        .arg(dir)
+        .args(args)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(!text(&out).contains("listening"), "{}", text(&out));
+    text(&out)
+}
+
+#[test]
+fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint() {
+    let (Some(pg_bin), Some(moto_bin)) = (postgres_bin(), moto_server()) else {
+        println!(
+            "SKIPPED: needs PostgreSQL (initdb, pg_ctl, createdb, psql in $PG_BIN, \
+             /usr/lib/postgresql/*/bin or the PATH: the `postgresql` package) and moto's \
+             `moto_server` ($MPM_MOTO_SERVER or .venv/bin/moto_server: `pip install -r \
+             tests/python/requirements.txt`); .ci/run installs both"
+        );
+        return;
+    };
+    let pg = Postgres::start(pg_bin);
+    let moto = Moto::start(&moto_bin);
+    moto.create_bucket(BUCKET);
+    let dir = tempfile::tempdir().unwrap();
+    let mpm = env!("CARGO_BIN_EXE_mpm");
+    let store = format!("s3://{BUCKET}/{PREFIX}");
+
+    // A malformed location and a missing bucket stop the service before it listens.
+    let bad = refused(&["--store", "s3:///runs"], &moto, &dir.path().join("bad"));
+    assert!(bad.contains("no bucket name"), "{bad}");
+    let missing = refused(
+        &["--store", "s3://no-such-bucket/runs", "--database", &pg.url()],
+        &moto,
+        &dir.path().join("missing"),
+    );
+    assert!(
+        missing.contains("bucket `no-such-bucket` not found"),
+        "{missing}"
+    );
+
+    let (api, url) = serve(
+        moto.env(&mut Command::new(mpm))
+            .args(["serve", "--listen", "127.0.0.1:0", "--workers", "0"])
+            .arg("--data")
+            .arg(dir.path().join("api"))
+            .args(["--store", &store, "--database", &pg.url()])
+            .env("RUST_LOG", "warn"),
+    );
+    let _api = Process(api);
+    let scratch = |n: usize| dir.path().join(format!("scratch{n}"));
+    let start_worker = |n: usize| {
+        let log = std::fs::File::create(dir.path().join(format!("worker{n}.log"))).unwrap();
+        Process(
+            moto.env(&mut Command::new(mpm))
+                .args(["worker", "--database", &pg.url(), "--lease-seconds", "2"])
+                .args(["--store", &store])
+                .arg("--scratch")
+                .arg(scratch(n))
+                .stdout(Stdio::null())
+                .stderr(log)
+                .spawn()
+                .unwrap(),
+        )
+    };
+    let mut workers = [Some(start_worker(1)), Some(start_worker(2))];
+    let logs = || -> String {
+        (1..=2)
+            .map(|n| {
+                std::fs::read_to_string(dir.path().join(format!("worker{n}.log")))
+                    .unwrap_or_default()
+            })
+            .collect()
+    };
+
+    // One job long enough to write and upload checkpoints (a few seconds), then the small
+    // ones.
+    let start = Instant::now();
+    let mut long = bar_json();
+    long["domain"]["cell_size"] = json!(0.0125);
+    long["solver"]["end_time"] = json!(4.0);
+    long["output"]["frames"] = json!(20);
+    long["output"]["checkpoint"] = json!({"steps": 400});
+    let long_id = submit(&url, &long);
+    let mut small = bar_json();
+    small["solver"]["end_time"] = json!(0.01);
+    small["output"]["frames"] = json!(4);
+    let mut ids = vec![long_id.clone()];
+    ids.extend((0..SMALL_JOBS).map(|_| submit(&url, &small)));
+
+    // Once the bucket's copy of the long job names a checkpoint, kill (SIGKILL) its worker.
+    let (killed_name, uploaded_step) = loop {
+        assert!(
+            start.elapsed() < Duration::from_secs(90),
+            "no checkpoint of the long job was uploaded: {}\n{}",
+            get_json(&format!("{url}/v1/jobs/{long_id}")),
+            logs()
+        );
+        let root = client()
+            .get(format!("{url}/v1/jobs/{long_id}/results/zarr.json"))
+            .send()
+            .unwrap();
+        let step = if root.status() == 200 {
+            root.json::<Value>().unwrap()["attributes"]["checkpoint"]["step"].as_u64()
+        } else {
+            None
+        };
+        let j = get_json(&format!("{url}/v1/jobs/{long_id}"));
+        if let (Some(step), "running") = (step, j["status"].as_str().unwrap_or("")) {
+            let worker = j["worker"].as_str().unwrap().to_string();
+            let slot = workers
+                .iter_mut()
+                .find(|w| {
+                    w.as_ref()
+                        .is_some_and(|p| worker.contains(&format!(":{}:", p.0.id())))
+                })
+                .expect("the job's worker is one of ours");
+            slot.take().unwrap().kill();
+            break (worker, step);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let killed_at = start.elapsed();
+
+    // Every job ends.
+    let mut statuses = BTreeMap::new();
+    let mut finals = BTreeMap::new();
+    for id in &ids {
+        let j = loop {
+            let j = get_json(&format!("{url}/v1/jobs/{id}"));
+            if matches!(
+                j["status"].as_str(),
+                Some("succeeded" | "failed" | "cancelled")
+            ) {
+                break j;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(180),
+                "job {id} did not end: {j}\nworker logs:\n{}",
+                logs()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        *statuses
+            .entry(j["status"].as_str().unwrap().to_string())
+            .or_insert(0) += 1;
+        finals.insert(id.clone(), j);
+    }
+    let elapsed = start.elapsed();
+    let failures = ids.len() - statuses.get("succeeded").copied().unwrap_or(0);
+    assert_eq!(failures, 0, "{statuses:?}\n{finals:?}\n{}", logs());
+
+    // Exactly one successful run per job; the only other run is the killed worker's.
+    let runs = pg.query("SELECT job_id, attempt, worker, COALESCE(outcome, 'open') FROM job_runs");
+    let mut per_job: BTreeMap<&str, Vec<&Vec<String>>> = BTreeMap::new();
+    for r in &runs {
+        per_job.entry(r[0].as_str()).or_default().push(r);
+    }
+    assert_eq!(per_job.len(), ids.len(), "every job ran");
+    let mut duplicates = 0;
+    for id in &ids {
+        let mine = &per_job[id.as_str()];
+        let succeeded = mine.iter().filter(|r| r[3] == "succeeded").count();
+        duplicates += succeeded.saturating_sub(1);
+        assert_eq!(succeeded, 1, "job {id} succeeded once: {mine:?}");
+        for r in mine.iter().filter(|r| r[3] != "succeeded") {
+            assert_eq!(
+                (r[2].as_str(), r[3].as_str()),
+                (killed_name.as_str(), "lease_expired"),
+                "{r:?}"
+            );
+        }
+    }
+    let long_runs = &per_job[long_id.as_str()];
+    assert_eq!(long_runs.len(), 2, "{long_runs:?}");
+    let survivor = long_runs
+        .iter()
+        .find(|r| r[3] == "succeeded")
+        .map(|r| r[2].clone())
+        .unwrap();
+    assert_ne!(survivor, killed_name, "the surviving worker reran it");
+
+    // The survivor, on its own scratch folder, resumed from the checkpoint the killed one
+    // uploaded (or a later one it uploaded before dying), and the result equals a local run.
+    let long_job = &finals[&long_id];
+    let resumed = long_job["metrics"]["resumed_from_step"].as_u64();
+    assert!(
+        resumed.is_some_and(|s| s >= uploaded_step),
+        "resumed from {resumed:?}, uploaded {uploaded_step}: {long_job}"
+    );
+    let local_dir = tempfile::tempdir().unwrap();
+    let path = write_scene(local_dir.path(), "long.json", &long);
+    let local = run(&load(&path, &[]));
+    assert_eq!(long_job["metrics"]["error"].as_f64(), local.error);
+
+    // Every store is whole when read through the API: all its frames and the metrics of a
+    // finished run; the long job's holds only its last checkpoint.
+    let read_at = Instant::now();
+    let copies = tempfile::tempdir().unwrap();
+    for id in &ids {
+        let to = copies.path().join(id);
+        let files = fetch_store(&url, id, &to);
+        let s = mpm_io::ResultStore::open(&to).unwrap();
+        let frames = if *id == long_id { 21 } else { 5 };
+        assert_eq!(s.frame_count().unwrap(), frames, "job {id}");
+        assert_eq!(s.attributes()["metrics"]["outcome"], "finished", "job {id}");
+        let groups: std::collections::BTreeSet<&str> = files
+            .iter()
+            .filter_map(|f| f.strip_prefix("checkpoints/")?.split_once('/'))
+            .map(|(step, _)| step)
+            .collect();
+        if *id == long_id {
+            assert_eq!(groups.len(), 1, "{groups:?}");
+        } else {
+            assert!(groups.is_empty(), "{groups:?}");
+        }
+        // The bucket holds exactly the served files, under the documented keys.
+        if *id == long_id {
+            let mut keys = moto.keys(BUCKET, &format!("{PREFIX}/{id}/results.zarr/"));
+            keys.sort();
+            let expected: Vec<String> = files
+                .iter()
+                .map(|f| format!("{PREFIX}/{id}/results.zarr/{f}"))
+                .collect();
+            assert_eq!(keys, expected);
+        }
+    }
+    let read_time = read_at.elapsed();
+    let missing = client()
+        .get(format!("{url}/v1/jobs/{long_id}/results/particles/nope/zarr.json"))
+        .send()
+        .unwrap();
+    assert_eq!(missing.status(), 404);
+    let picture = client()
+        .get(format!("{url}/v1/jobs/{long_id}/frames/-1.png"))
+        .send()
+        .unwrap();
+    assert_eq!(picture.status(), 200);
+    assert!(picture.bytes().unwrap().starts_with(b"\x89PNG\r\n\x1a\n"));
+
+    // Nothing is left in the survivor's scratch folder: every store went to the bucket.
+    let survivor_n = workers.iter().position(Option::is_some).unwrap() + 1;
+    let left: Vec<_> = std::fs::read_dir(scratch(survivor_n))
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+
+    println!(
+        "s3: {} jobs, 2 workers with their own scratch folders (one killed with SIGKILL at \
+         {:.1} s, after it uploaded the checkpoint of step {uploaded_step}), all ended in \
+         {:.1} s: {failures} failures, {duplicates} duplicate runs, {} runs lost to the killed \
+         worker's lease; the long job resumed from step {} on the other worker; every store \
+         read back through the API in {:.1} s",
+        ids.len(),
+        killed_at.as_secs_f64(),
+        elapsed.as_secs_f64(),
+        runs.len() - ids.len(),
+        resumed.unwrap_or(0),
+        read_time.as_secs_f64()
+    );
+}

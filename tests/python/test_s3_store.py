@@ -1,0 +1,110 @@
+"""A job's store in an S3 bucket (moto's server) opens in zarr-python: through the API over
+HTTP as before, and straight from the bucket's prefix, which is itself a Zarr v3 store."""
+
+import json
+import os
+import pathlib
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+import zarr
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+MPM = os.environ.get("MPM_BIN", str(ROOT / "target" / "release" / "mpm"))
+MOTO = os.environ.get("MPM_MOTO_SERVER", str(pathlib.Path(sys.executable).parent / "moto_server"))
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def moto():
+    if not os.path.isfile(MOTO):
+        pytest.skip(f"no moto_server at {MOTO} (pip install -r tests/python/requirements.txt)")
+    port = free_port()
+    server = subprocess.Popen(
+        [MOTO, "-H", "127.0.0.1", "-p", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    endpoint = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.time() + 60
+        while True:
+            try:
+                urllib.request.urlopen(endpoint).close()
+                break
+            except OSError:
+                assert time.time() < deadline, "moto_server did not start"
+                time.sleep(0.1)
+        yield endpoint
+    finally:
+        server.kill()
+        server.wait()
+
+
+def test_s3_results_open_over_http(tmp_path, moto):
+    # CreateBucket: moto takes unsigned requests.
+    urllib.request.urlopen(urllib.request.Request(f"{moto}/results", method="PUT")).close()
+    env = dict(
+        os.environ,
+        AWS_ENDPOINT_URL=moto,
+        AWS_ACCESS_KEY_ID="testing",
+        AWS_SECRET_ACCESS_KEY="testing",
+        AWS_REGION="us-east-1",
+    )
+    server = subprocess.Popen(
+        [MPM, "serve", "--listen", "127.0.0.1:0", "--data", str(tmp_path / "data"),
+         "--store", "s3://results/mpm"],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        line = server.stdout.readline()
+        assert line.startswith("listening on "), line
+        url = line.split()[-1]
+        scene = json.loads((ROOT / "examples" / "vibrating-bar.json").read_text())
+        request = urllib.request.Request(
+            f"{url}/v1/jobs",
+            data=json.dumps(scene).encode(),
+            headers={"Content-Type": "application/json"},
+            method="POST",
+        )
+        with urllib.request.urlopen(request) as r:
+            assert r.status == 202
+            job = json.load(r)
+        deadline = time.time() + 60
+        while job["status"] not in ("succeeded", "failed", "cancelled"):
+            assert time.time() < deadline
+            time.sleep(0.1)
+            with urllib.request.urlopen(f"{url}/v1/jobs/{job['id']}") as r:
+                job = json.load(r)
+        assert job["status"] == "succeeded"
+
+        # Through the API, exactly as with a local store.
+        g = zarr.open_group(f"{url}/v1/jobs/{job['id']}/results", mode="r")
+        assert g.attrs["metrics"]["error"] == job["metrics"]["error"]
+        x = g["particles/x"][:]
+        assert x.shape == (41, 320, 2)
+        assert np.all(np.isfinite(x))
+        assert g["time"][-1] == 0.4
+
+        # Straight from the bucket (moto serves objects to plain GETs): the prefix
+        # `mpm/<id>/results.zarr` is a Zarr store holding the same arrays.
+        direct = zarr.open_group(f"{moto}/results/mpm/{job['id']}/results.zarr", mode="r")
+        assert direct.attrs["metrics"] == g.attrs["metrics"]
+        np.testing.assert_array_equal(direct["particles/x"][:], x)
+        # Nothing of the job stays in the service's scratch folder once it is uploaded.
+        assert not (tmp_path / "data" / "scratch" / job["id"]).exists()
+    finally:
+        server.kill()
+        server.wait()
