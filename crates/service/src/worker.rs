@@ -224,26 +224,31 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         particles,
         ..
     } = claimed;
+    // The lease is renewed from the start: downloading and uploading a large store take
+    // time too.
+    let flag = state.jobs.register(&id);
+    let mut heartbeat = Some(tokio::spawn(keep_lease(
+        state.clone(),
+        id.clone(),
+        worker.to_string(),
+        flag.clone(),
+    )));
     // With an S3 store, an earlier attempt's store (and checkpoint) comes down first.
     let sync = match state.results.prepare(&id).await {
         Ok(sync) => sync,
         Err(e) => {
-            let failure = serde_json::json!({
-                "message": format!("fetching the job's store from the result store failed: {e}")
-            });
-            record_end(state, &id, worker, attempt, particles, ("failed", None, Some(failure.to_string()), None)).await;
+            state.jobs.remove(&id);
+            if !lease_lost(&mut heartbeat).await {
+                stop_heartbeat(heartbeat);
+                let message = format!("fetching the job's store from the result store failed: {e}");
+                let failure = serde_json::json!({ "message": message }).to_string();
+                record_end(state, &id, worker, attempt, particles, ("failed", None, Some(failure), None)).await;
+            }
             return;
         }
     };
     let (stop_uploads, uploads_stop) = watch::channel(false);
     let uploads = tokio::spawn(upload_checkpoints(sync, id.clone(), uploads_stop));
-    let flag = state.jobs.register(&id);
-    let heartbeat = tokio::spawn(keep_lease(
-        state.clone(),
-        id.clone(),
-        worker.to_string(),
-        flag.clone(),
-    ));
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(u64, f64, f64)>();
     let writer = {
         let db = state.db.clone();
@@ -275,12 +280,6 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     };
     let _ = writer.await;
     state.jobs.remove(&id);
-    let lost = if heartbeat.is_finished() {
-        heartbeat.await.unwrap_or(false)
-    } else {
-        heartbeat.abort();
-        false
-    };
     let _ = stop_uploads.send(true);
     let sync = match uploads.await {
         Ok(sync) => Some(sync),
@@ -289,7 +288,7 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
             None
         }
     };
-    if lost {
+    if lease_lost(&mut heartbeat).await {
         // Another worker may own the job now; nothing of this run is recorded or uploaded.
         if let Some(sync) = sync {
             sync.discard().await;
@@ -298,7 +297,7 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     }
     // The store goes up before the job's end is recorded, so a finished job's store is
     // whole when read; also when the job goes back to the queue (another machine resumes
-    // it from what was uploaded).
+    // it from what was uploaded). The lease is still renewed meanwhile.
     let uploaded = match sync {
         Some(sync) => sync.finish().await.map_err(|e| e.to_string()),
         None => Err("the upload task failed".to_string()),
@@ -306,6 +305,10 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     if let Err(e) = &uploaded {
         tracing::error!(job = %id, error = %e, "uploading the job's store failed");
     }
+    if lease_lost(&mut heartbeat).await {
+        return;
+    }
+    stop_heartbeat(heartbeat);
     let progress = *last.lock().expect("progress lock");
     let shutting_down = state.jobs.shutting_down.load(Ordering::Relaxed);
     let failed =
@@ -340,6 +343,22 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         _ => (status, failure),
     };
     record_end(state, &id, worker, attempt, particles, (status, metrics, failure, progress)).await;
+}
+
+/// Whether the job's heartbeat ended because the lease was lost (it runs until aborted
+/// otherwise); a heartbeat that ended is taken out.
+async fn lease_lost(heartbeat: &mut Option<tokio::task::JoinHandle<bool>>) -> bool {
+    match heartbeat.take_if(|h| h.is_finished()) {
+        Some(h) => h.await.unwrap_or(false),
+        None => false,
+    }
+}
+
+/// Stops renewing the lease (the run's end is about to be recorded).
+fn stop_heartbeat(heartbeat: Option<tokio::task::JoinHandle<bool>>) {
+    if let Some(h) = heartbeat {
+        h.abort();
+    }
 }
 
 /// What a run ends with: status, metrics, failure (JSON text) and last progress.

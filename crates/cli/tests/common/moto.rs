@@ -87,13 +87,20 @@ impl Moto {
         let mut keys = Vec::new();
         let mut token: Option<String> = None;
         loop {
-            let mut request = super::http_client(30)
-                .get(format!("{}/{bucket}", self.endpoint()))
-                .query(&[("list-type", "2"), ("prefix", prefix)]);
+            let mut url = format!(
+                "{}/{bucket}?list-type=2&prefix={}",
+                self.endpoint(),
+                encode(prefix)
+            );
             if let Some(t) = &token {
-                request = request.query(&[("continuation-token", t.as_str())]);
+                url.push_str(&format!("&continuation-token={}", encode(t)));
             }
-            let body = request.send().unwrap().text().unwrap();
+            let body = super::http_client(30)
+                .get(url)
+                .send()
+                .unwrap()
+                .text()
+                .unwrap();
             keys.extend(elements(&body, "Key"));
             token = elements(&body, "NextContinuationToken").into_iter().next();
             if token.is_none() {
@@ -102,6 +109,18 @@ impl Moto {
         }
         keys
     }
+}
+
+/// `text` percent-encoded for a query string (every byte but the unreserved ones).
+fn encode(text: &str) -> String {
+    text.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'.' | b'_' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 /// The texts of every `<name>...</name>` element of an XML document (keys here are plain).

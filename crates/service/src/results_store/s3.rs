@@ -67,11 +67,18 @@ impl S3Store {
             .await
         {
             Ok(_) => Ok(store),
-            Err(object_store::Error::NotFound { source, .. }) => Err(StoreError::NoBucket {
-                bucket: bucket.to_string(),
-                endpoint: endpoint.unwrap_or_else(|| "AWS S3".into()),
-                message: source.to_string(),
-            }),
+            // S3 answers a listing of a missing bucket with 404 `NoSuchBucket`, which
+            // object_store passes on as a generic error carrying the body.
+            Err(e)
+                if matches!(e, object_store::Error::NotFound { .. })
+                    || e.to_string().contains("NoSuchBucket") =>
+            {
+                Err(StoreError::NoBucket {
+                    bucket: bucket.to_string(),
+                    endpoint: endpoint.unwrap_or_else(|| "AWS S3".into()),
+                    message: "the server answered NoSuchBucket".into(),
+                })
+            }
             Err(e) => Err(e.into()),
         }
     }
