@@ -1,5 +1,6 @@
 """A job's store in an S3 bucket (moto's server) opens in zarr-python: through the API over
-HTTP as before, and straight from the bucket's prefix, which is itself a Zarr v3 store."""
+HTTP as before, and from the bucket's objects, whose keys under the job's prefix are the
+store's own keys."""
 
 import json
 import os
@@ -98,9 +99,31 @@ def test_s3_results_open_over_http(tmp_path, moto):
         assert np.all(np.isfinite(x))
         assert g["time"][-1] == 0.4
 
-        # Straight from the bucket (moto serves objects to plain GETs): the prefix
-        # `mpm/<id>/results.zarr` is a Zarr store holding the same arrays.
-        direct = zarr.open_group(f"{moto}/results/mpm/{job['id']}/results.zarr", mode="r")
+        # Straight from the bucket: the objects under `mpm/<id>/results.zarr/` are the
+        # store's keys, so copying them as files gives a store zarr-python opens (boto3
+        # comes with moto; s3fs is not needed for this).
+        boto3 = pytest.importorskip("boto3")
+        s3 = boto3.client(
+            "s3",
+            endpoint_url=moto,
+            aws_access_key_id="testing",
+            aws_secret_access_key="testing",
+            region_name="us-east-1",
+        )
+        prefix = f"mpm/{job['id']}/results.zarr/"
+        keys = [
+            o["Key"]
+            for page in s3.get_paginator("list_objects_v2").paginate(Bucket="results", Prefix=prefix)
+            for o in page.get("Contents", [])
+        ]
+        with urllib.request.urlopen(f"{url}/v1/jobs/{job['id']}/files") as r:
+            assert sorted(k[len(prefix):] for k in keys) == json.load(r)["files"]
+        direct_dir = tmp_path / "direct.zarr"
+        for key in keys:
+            path = direct_dir / key[len(prefix):]
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(s3.get_object(Bucket="results", Key=key)["Body"].read())
+        direct = zarr.open_group(str(direct_dir), mode="r")
         assert direct.attrs["metrics"] == g.attrs["metrics"]
         np.testing.assert_array_equal(direct["particles/x"][:], x)
         # Nothing of the job stays in the service's scratch folder once it is uploaded.

@@ -46,10 +46,9 @@ fn get_json(url: &str) -> Value {
 /// Downloads a job's whole store through the API (`/files`, then each file from
 /// `/results/...`, as a Zarr reader over HTTP would) into `to`.
 fn fetch_store(url: &str, id: &str, to: &Path) -> Vec<String> {
-    let files: Vec<String> = serde_json::from_value(
-        get_json(&format!("{url}/v1/jobs/{id}/files"))["files"].clone(),
-    )
-    .unwrap();
+    let files: Vec<String> =
+        serde_json::from_value(get_json(&format!("{url}/v1/jobs/{id}/files"))["files"].clone())
+            .unwrap();
     for file in &files {
         let r = client()
             .get(format!("{url}/v1/jobs/{id}/results/{file}"))
@@ -127,7 +126,12 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
     let bad = refused(&["--store", "s3:///runs"], &moto, &dir.path().join("bad"));
     assert!(bad.contains("no bucket name"), "{bad}");
     let missing = refused(
-        &["--store", "s3://no-such-bucket/runs", "--database", &pg.url()],
+        &[
+            "--store",
+            "s3://no-such-bucket/runs",
+            "--database",
+            &pg.url(),
+        ],
         &moto,
         &dir.path().join("missing"),
     );
@@ -305,10 +309,9 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
     let read_at = Instant::now();
     let copies = tempfile::tempdir().unwrap();
     let check = |(n, id): (usize, &String)| -> usize {
-        let listed: Vec<String> = serde_json::from_value(
-            get_json(&format!("{url}/v1/jobs/{id}/files"))["files"].clone(),
-        )
-        .unwrap();
+        let listed: Vec<String> =
+            serde_json::from_value(get_json(&format!("{url}/v1/jobs/{id}/files"))["files"].clone())
+                .unwrap();
         let expected = if *id == long_id {
             &long_files
         } else {
@@ -316,7 +319,10 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
         };
         assert_eq!(&listed, expected, "job {id}");
         let root = get_json(&format!("{url}/v1/jobs/{id}/results/zarr.json"));
-        assert_eq!(root["attributes"]["metrics"]["outcome"], "finished", "job {id}");
+        assert_eq!(
+            root["attributes"]["metrics"]["outcome"], "finished",
+            "job {id}"
+        );
         if *id != long_id && n % 10 != 0 {
             return 0;
         }
@@ -349,7 +355,9 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
     });
     let read_time = read_at.elapsed();
     let missing = client()
-        .get(format!("{url}/v1/jobs/{long_id}/results/particles/nope/zarr.json"))
+        .get(format!(
+            "{url}/v1/jobs/{long_id}/results/particles/nope/zarr.json"
+        ))
         .send()
         .unwrap();
     assert_eq!(missing.status(), 404);

@@ -242,7 +242,15 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
                 stop_heartbeat(heartbeat);
                 let message = format!("fetching the job's store from the result store failed: {e}");
                 let failure = serde_json::json!({ "message": message }).to_string();
-                record_end(state, &id, worker, attempt, particles, ("failed", None, Some(failure), None)).await;
+                record_end(
+                    state,
+                    &id,
+                    worker,
+                    attempt,
+                    particles,
+                    ("failed", None, Some(failure), None),
+                )
+                .await;
             }
             return;
         }
@@ -342,7 +350,15 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         ),
         _ => (status, failure),
     };
-    record_end(state, &id, worker, attempt, particles, (status, metrics, failure, progress)).await;
+    record_end(
+        state,
+        &id,
+        worker,
+        attempt,
+        particles,
+        (status, metrics, failure, progress),
+    )
+    .await;
 }
 
 /// Whether the job's heartbeat ended because the lease was lost (it runs until aborted

@@ -162,9 +162,9 @@ impl ResultsStore {
     pub async fn open(location: &StoreLocation, scratch: &Path) -> Result<Self, StoreError> {
         match location {
             StoreLocation::Folder(root) => Ok(Self::Local(local::LocalStore::open(root)?)),
-            StoreLocation::S3 { bucket, prefix } => Ok(Self::S3(
-                s3::S3Store::open(bucket, prefix, scratch).await?,
-            )),
+            StoreLocation::S3 { bucket, prefix } => {
+                Ok(Self::S3(s3::S3Store::open(bucket, prefix, scratch).await?))
+            }
         }
     }
 
@@ -201,9 +201,11 @@ impl ResultsStore {
     /// Whether a job has a store yet (its root `zarr.json`).
     pub async fn has_results(&self, id: &str) -> Result<bool, StoreError> {
         match self {
-            Self::Local(_) => Ok(tokio::fs::try_exists(self.results_dir(id).join("zarr.json"))
-                .await
-                .unwrap_or(false)),
+            Self::Local(_) => Ok(
+                tokio::fs::try_exists(self.results_dir(id).join("zarr.json"))
+                    .await
+                    .unwrap_or(false),
+            ),
             Self::S3(s) => s.exists(id, "zarr.json").await,
         }
     }
@@ -310,10 +312,7 @@ mod tests {
             "",
         ] {
             let e = StoreLocation::parse(bad).unwrap_err();
-            assert!(
-                matches!(e, StoreError::BadLocation { .. }),
-                "{bad}: {e}"
-            );
+            assert!(matches!(e, StoreError::BadLocation { .. }), "{bad}: {e}");
         }
     }
 }
