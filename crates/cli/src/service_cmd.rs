@@ -173,11 +173,11 @@ fn store_location(text: &str) -> anyhow::Result<mpm_service::StoreLocation> {
         .map_err(|e| crate::exit_status::input_error!("--store {e}"))
 }
 
-/// A store that cannot be opened (a missing bucket, an unreachable server, bad keys) is a
-/// configuration the user gave: exit 2, before listening.
+/// A bucket the server does not have is an input error (exit 2, before listening); a folder
+/// that cannot be created or an unreachable server stays an operational failure (1).
 fn service_result(result: Result<(), mpm_service::ServiceError>) -> anyhow::Result<()> {
     match result {
-        Err(mpm_service::ServiceError::Store(e)) => {
+        Err(mpm_service::ServiceError::Store(e)) if e.is_input() => {
             Err(crate::exit_status::input_error!("--store: {e}"))
         }
         other => Ok(other?),

@@ -129,6 +129,12 @@ pub enum StoreError {
 }
 
 impl StoreError {
+    /// Whether the error is in what was given (a malformed location, a bucket the server
+    /// does not have) rather than in the machine or the network: `mpm` exits 2 for it.
+    pub fn is_input(&self) -> bool {
+        matches!(self, Self::BadLocation { .. } | Self::NoBucket { .. })
+    }
+
     /// An I/O error at `path`.
     fn io(path: &Path, source: std::io::Error) -> Self {
         Self::Io {
