@@ -216,6 +216,14 @@ async fn upload_checkpoints(
     }
 }
 
+/// The job's heartbeat: `None` once it ended or was stopped.
+type Heartbeat = Option<tokio::task::JoinHandle<bool>>;
+
+/// JSON text of a failure with a message.
+fn failure_text(message: String) -> Option<String> {
+    serde_json::to_string(&serde_json::json!({ "message": message })).ok()
+}
+
 async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     let Claimed {
         id,
@@ -234,33 +242,47 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         flag.clone(),
     )));
     // With an S3 store, an earlier attempt's store (and checkpoint) comes down first.
-    let sync = match state.results.prepare(&id).await {
-        Ok(sync) => sync,
-        Err(e) => {
-            state.jobs.remove(&id);
-            if !lease_lost(&mut heartbeat).await {
-                stop_heartbeat(heartbeat);
-                let message = format!("fetching the job's store from the result store failed: {e}");
-                let failure = serde_json::json!({ "message": message }).to_string();
-                record_end(
-                    state,
-                    &id,
-                    worker,
-                    attempt,
-                    particles,
-                    ("failed", None, Some(failure), None),
-                )
-                .await;
-            }
-            return;
-        }
+    let end = match state.results.prepare(&id).await {
+        Ok(sync) => run_attempt(state, worker, &id, scene, flag, sync, &mut heartbeat).await,
+        Err(e) => Some((
+            "failed",
+            None,
+            failure_text(format!(
+                "fetching the job's store from the result store failed: {e}"
+            )),
+            None,
+        )),
     };
+    state.jobs.remove(&id);
+    // `None`: the lease was lost (another worker may own the job now), or the job goes
+    // back to the queue as this worker stops; nothing is recorded.
+    let Some(end) = end else { return };
+    if lease_lost(&mut heartbeat).await {
+        return;
+    }
+    if let Some(h) = heartbeat {
+        h.abort();
+    }
+    record_end(state, &id, worker, attempt, particles, end).await;
+}
+
+/// Runs a claimed job, uploading its store at checkpoints and at the end (S3); returns how
+/// it ended, or `None` when nothing is to be recorded (see [`run_job`]).
+async fn run_attempt(
+    state: &Arc<State>,
+    worker: &str,
+    id: &str,
+    scene: String,
+    flag: Arc<AtomicBool>,
+    sync: JobSync,
+    heartbeat: &mut Heartbeat,
+) -> Option<End> {
     let (stop_uploads, uploads_stop) = watch::channel(false);
-    let uploads = tokio::spawn(upload_checkpoints(sync, id.clone(), uploads_stop));
+    let uploads = tokio::spawn(upload_checkpoints(sync, id.to_string(), uploads_stop));
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(u64, f64, f64)>();
     let writer = {
         let db = state.db.clone();
-        let id = id.clone();
+        let id = id.to_string();
         let worker = worker.to_string();
         tokio::spawn(async move {
             while let Some((step, time, wall)) = rx.recv().await {
@@ -275,7 +297,7 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         Some(command) => {
             crate::child::run_in_child(
                 command,
-                &state.results.job_dir(&id),
+                &state.results.job_dir(id),
                 &state.config.data_dir,
                 &scene,
                 flag.clone(),
@@ -284,10 +306,9 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
             )
             .await
         }
-        None => run_in_process(state, &id, scene, flag.clone(), tx, last.clone()).await,
+        None => run_in_process(state, id, scene, flag.clone(), tx, last.clone()).await,
     };
     let _ = writer.await;
-    state.jobs.remove(&id);
     let _ = stop_uploads.send(true);
     let sync = match uploads.await {
         Ok(sync) => Some(sync),
@@ -296,12 +317,12 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
             None
         }
     };
-    if lease_lost(&mut heartbeat).await {
-        // Another worker may own the job now; nothing of this run is recorded or uploaded.
+    if lease_lost(heartbeat).await {
+        // Another worker may own the job now; nothing of this run is uploaded.
         if let Some(sync) = sync {
             sync.discard().await;
         }
-        return;
+        return None;
     }
     // The store goes up before the job's end is recorded, so a finished job's store is
     // whole when read; also when the job goes back to the queue (another machine resumes
@@ -313,21 +334,15 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     if let Err(e) = &uploaded {
         tracing::error!(job = %id, error = %e, "uploading the job's store failed");
     }
-    if lease_lost(&mut heartbeat).await {
-        return;
-    }
-    stop_heartbeat(heartbeat);
     let progress = *last.lock().expect("progress lock");
     let shutting_down = state.jobs.shutting_down.load(Ordering::Relaxed);
-    let failed =
-        |message: String| serde_json::to_string(&serde_json::json!({ "message": message })).ok();
     let (status, metrics, failure, progress) = match outcome {
         ChildEnd::Metrics(m) => {
             let metrics = serde_json::to_string(&m).ok();
             match m["outcome"].as_str() {
                 Some("finished") => ("succeeded", metrics, None, Some(progress)),
                 // Left `running`: the worker gives it back to the queue as it stops.
-                Some("cancelled") if shutting_down => return,
+                Some("cancelled") if shutting_down => return None,
                 Some("cancelled") => ("cancelled", metrics, None, Some(progress)),
                 _ => {
                     let failure = serde_json::to_string(&serde_json::json!({
@@ -339,41 +354,27 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
                 }
             }
         }
-        ChildEnd::Refused(message) => ("failed", None, failed(message), None),
-        ChildEnd::Crashed(_) if shutting_down => return,
-        ChildEnd::Crashed(message) => ("failed", None, failed(message), Some(progress)),
+        ChildEnd::Refused(message) => ("failed", None, failure_text(message), None),
+        ChildEnd::Crashed(_) if shutting_down => return None,
+        ChildEnd::Crashed(message) => ("failed", None, failure_text(message), Some(progress)),
     };
-    let (status, failure) = match uploaded {
+    Some(match uploaded {
         Err(e) if status != "cancelled" => (
             "failed",
-            failed(format!("the run ended but uploading its store failed: {e}")),
+            metrics,
+            failure_text(format!("the run ended but uploading its store failed: {e}")),
+            progress,
         ),
-        _ => (status, failure),
-    };
-    record_end(
-        state,
-        &id,
-        worker,
-        attempt,
-        particles,
-        (status, metrics, failure, progress),
-    )
-    .await;
+        _ => (status, metrics, failure, progress),
+    })
 }
 
 /// Whether the job's heartbeat ended because the lease was lost (it runs until aborted
 /// otherwise); a heartbeat that ended is taken out.
-async fn lease_lost(heartbeat: &mut Option<tokio::task::JoinHandle<bool>>) -> bool {
+async fn lease_lost(heartbeat: &mut Heartbeat) -> bool {
     match heartbeat.take_if(|h| h.is_finished()) {
         Some(h) => h.await.unwrap_or(false),
         None => false,
-    }
-}
-
-/// Stops renewing the lease (the run's end is about to be recorded).
-fn stop_heartbeat(heartbeat: Option<tokio::task::JoinHandle<bool>>) {
-    if let Some(h) = heartbeat {
-        h.abort();
     }
 }
 
