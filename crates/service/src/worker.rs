@@ -242,7 +242,7 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         flag.clone(),
     )));
     // With an S3 store, an earlier attempt's store (and checkpoint) comes down first.
-    let end = match state.results.prepare(&id).await {
+    let end = match state.results.prepare(&id, attempt).await {
         Ok(sync) => run_attempt(state, worker, &id, scene, flag, sync, &mut heartbeat).await,
         Err(e) => Some((
             "failed",

@@ -231,13 +231,13 @@ impl ResultsStore {
         }
     }
 
-    /// Gets a job's folder ready for a run and returns what keeps its store in step: with
-    /// S3, any store an earlier attempt uploaded comes down into the scratch folder (the run
-    /// resumes from its checkpoint), replacing what was there.
-    pub async fn prepare(&self, id: &str) -> Result<JobSync, StoreError> {
+    /// Gets a job's folder ready for its `attempt`th run and returns what keeps its store in
+    /// step: with S3, the store an earlier attempt uploaded comes down into the scratch folder
+    /// (the run resumes from its checkpoint), replacing what was there.
+    pub async fn prepare(&self, id: &str, attempt: i64) -> Result<JobSync, StoreError> {
         match self {
             Self::Local(_) => Ok(JobSync(None)),
-            Self::S3(s) => Ok(JobSync(Some(s.download(id).await?))),
+            Self::S3(s) => Ok(JobSync(Some(s.download(id, attempt).await?))),
         }
     }
 }

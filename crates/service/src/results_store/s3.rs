@@ -122,9 +122,10 @@ impl S3Store {
         Ok(keys)
     }
 
-    /// Replaces the job's scratch folder with the store an earlier attempt uploaded (if any)
-    /// and returns the mirror that uploads it again as the run writes.
-    pub async fn download(&self, id: &str) -> Result<Mirror, StoreError> {
+    /// Replaces the job's scratch folder with the store an earlier attempt uploaded (none
+    /// before the first attempt: nothing is asked then) and returns the mirror that uploads
+    /// it again as the run writes. The mirror knows every object of the store from here on.
+    pub async fn download(&self, id: &str, attempt: i64) -> Result<Mirror, StoreError> {
         let job_dir = self.scratch.join(id);
         remove_dir(&job_dir).await?;
         let dir = job_dir.join(RESULTS);
@@ -132,7 +133,11 @@ impl S3Store {
             .await
             .map_err(|e| StoreError::io(&dir, e))?;
         let base = self.base(id);
-        let sent = fetch(&self.client, &base, &dir, |_| true).await?;
+        let sent = if attempt > 1 {
+            fetch(&self.client, &base, &dir, |_| true).await?
+        } else {
+            Vec::new()
+        };
         let checkpoint = checkpoint_of(&dir.join("zarr.json"))
             .await
             .map(|(_, step)| step);
@@ -342,8 +347,8 @@ impl Mirror {
     /// older one meanwhile: the root read first is uploaded only if the checkpoint it names
     /// is still there after the other files went up, so the bucket's root always names a
     /// checkpoint whose files it has; otherwise the next call tries again. Objects of files
-    /// that are gone are removed after a root was uploaded (at the end: every object of the
-    /// store that has no file). Returns the checkpoint step the uploaded root names.
+    /// that are gone are removed after a root was uploaded. Returns the checkpoint step the
+    /// uploaded root names.
     async fn sync(&mut self, ended: bool) -> Result<Option<u64>, StoreError> {
         let root = read_settled(&self.dir.join("zarr.json")).await?;
         let named = root.as_ref().and_then(|(bytes, _)| checkpoint_in(bytes));
@@ -396,20 +401,12 @@ impl Mirror {
             self.sent.insert("zarr.json".into(), stamp);
         }
         let local: HashSet<&String> = files.iter().collect();
-        let mut stale: Vec<String> = self
+        let stale: Vec<String> = self
             .sent
             .keys()
             .filter(|k| !local.contains(k))
             .cloned()
             .collect();
-        if ended {
-            // Objects this mirror never saw (an attempt it did not download) go too.
-            for key in self.list_remote().await? {
-                if !local.contains(&key) && !self.sent.contains_key(&key) {
-                    stale.push(key);
-                }
-            }
-        }
         for key in stale {
             self.sent.remove(&key);
             match self.client.delete(&key_of(&self.base, &key)).await {
@@ -420,16 +417,6 @@ impl Mirror {
         let step = named.map(|(_, step)| step);
         self.checkpoint = step;
         Ok(step)
-    }
-
-    async fn list_remote(&self) -> Result<Vec<String>, StoreError> {
-        let base = &self.base;
-        Ok(self
-            .client
-            .list(Some(base))
-            .try_filter_map(|meta| std::future::ready(Ok(relative(&meta.location, base))))
-            .try_collect()
-            .await?)
     }
 }
 
