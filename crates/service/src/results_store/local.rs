@@ -38,7 +38,7 @@ pub(crate) async fn list_files(root: PathBuf) -> Result<Vec<String>, StoreError>
         .await
         .map_err(|e| StoreError::Io {
             path: "listing a store".into(),
-            source: std::io::Error::other(e),
+            error: std::io::Error::other(e),
         })
 }
 

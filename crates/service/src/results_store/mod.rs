@@ -116,16 +116,23 @@ pub enum StoreError {
         message: String,
     },
     /// A local file or folder could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file or folder.
         path: String,
         /// The underlying error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    /// The object store refused or failed a request.
+    /// The object store refused or failed a request (its message holds the request and the
+    /// server's answer).
     #[error("object store: {0}")]
-    Object(#[from] object_store::Error),
+    Object(object_store::Error),
+}
+
+impl From<object_store::Error> for StoreError {
+    fn from(e: object_store::Error) -> Self {
+        Self::Object(e)
+    }
 }
 
 impl StoreError {
@@ -136,10 +143,10 @@ impl StoreError {
     }
 
     /// An I/O error at `path`.
-    fn io(path: &Path, source: std::io::Error) -> Self {
+    fn io(path: &Path, error: std::io::Error) -> Self {
         Self::Io {
             path: path.display().to_string(),
-            source,
+            error,
         }
     }
 }

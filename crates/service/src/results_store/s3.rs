@@ -371,7 +371,7 @@ impl Mirror {
         .await
         .map_err(|e| StoreError::Io {
             path: self.dir.display().to_string(),
-            source: std::io::Error::other(e),
+            error: std::io::Error::other(e),
         })?;
         let uploaded: Vec<Option<(String, Stamp)>> = stream::iter(changed)
             .map(|key| {
