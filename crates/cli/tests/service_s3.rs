@@ -383,7 +383,8 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
          {:.1} s: {failures} failures, {duplicates} duplicate runs, {} runs lost to the killed \
          worker's lease; the long job resumed from step {} on the other worker; every store \
          listed and checked, {files_read} files of 11 of them read, through the API in {:.1} s; \
-         set-up (PostgreSQL, moto, the refused starts) {:.1} s, the whole test {:.1} s",
+         set-up (PostgreSQL, moto, the refused starts) {:.1} s, the whole test {:.1} s; moto used \
+         {:.1} s of CPU",
         ids.len(),
         killed_at.as_secs_f64(),
         elapsed.as_secs_f64(),
@@ -391,6 +392,7 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
         resumed.unwrap_or(0),
         read_time.as_secs_f64(),
         setup.as_secs_f64(),
-        began.elapsed().as_secs_f64()
+        began.elapsed().as_secs_f64(),
+        moto.cpu_seconds().unwrap_or(f64::NAN)
     );
 }

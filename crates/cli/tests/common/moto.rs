@@ -56,6 +56,17 @@ impl Moto {
         moto
     }
 
+    /// CPU seconds the server has used so far (Linux: /proc), to see what the S3 requests
+    /// cost; `None` where that cannot be read.
+    pub fn cpu_seconds(&self) -> Option<f64> {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self._process.0.id())).ok()?;
+        // Fields after the command name (which may hold spaces) start at `) `.
+        let fields: Vec<&str> = stat.rsplit_once(") ")?.1.split(' ').collect();
+        let ticks: f64 =
+            fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+        Some(ticks / 100.0)
+    }
+
     /// `http://127.0.0.1:PORT`.
     pub fn endpoint(&self) -> String {
         format!("http://127.0.0.1:{}", self.port)
