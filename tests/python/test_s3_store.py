@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import zarr
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-MPM = os.environ.get("MPM_BIN", str(ROOT / "target" / "release" / "mpm"))
+from mpm_helpers import example, open_bar_results, run_job, start_server
+
 MOTO = os.environ.get("MPM_MOTO_SERVER", str(pathlib.Path(sys.executable).parent / "moto_server"))
 
 
@@ -62,42 +62,15 @@ def test_s3_results_open_over_http(tmp_path, moto):
         AWS_SECRET_ACCESS_KEY="testing",
         AWS_REGION="us-east-1",
     )
-    server = subprocess.Popen(
-        [MPM, "serve", "--listen", "127.0.0.1:0", "--data", str(tmp_path / "data"),
-         "--store", "s3://results/mpm"],
-        stdout=subprocess.PIPE,
-        text=True,
-        env=env,
+    server, url = start_server(
+        ["--data", str(tmp_path / "data"), "--store", "s3://results/mpm"], env=env
     )
     try:
-        line = server.stdout.readline()
-        assert line.startswith("listening on "), line
-        url = line.split()[-1]
-        scene = json.loads((ROOT / "examples" / "vibrating-bar.json").read_text())
-        request = urllib.request.Request(
-            f"{url}/v1/jobs",
-            data=json.dumps(scene).encode(),
-            headers={"Content-Type": "application/json"},
-            method="POST",
-        )
-        with urllib.request.urlopen(request) as r:
-            assert r.status == 202
-            job = json.load(r)
-        deadline = time.time() + 60
-        while job["status"] not in ("succeeded", "failed", "cancelled"):
-            assert time.time() < deadline
-            time.sleep(0.1)
-            with urllib.request.urlopen(f"{url}/v1/jobs/{job['id']}") as r:
-                job = json.load(r)
+        job = run_job(url, example("vibrating-bar.json"))
         assert job["status"] == "succeeded"
 
         # Through the API, exactly as with a local store.
-        g = zarr.open_group(f"{url}/v1/jobs/{job['id']}/results", mode="r")
-        assert g.attrs["metrics"]["error"] == job["metrics"]["error"]
-        x = g["particles/x"][:]
-        assert x.shape == (41, 320, 2)
-        assert np.all(np.isfinite(x))
-        assert g["time"][-1] == 0.4
+        g, x = open_bar_results(url, job)
 
         # Straight from the bucket: the objects under `mpm/<id>/results.zarr/` are the
         # store's keys, so copying them as files gives a store zarr-python opens (boto3

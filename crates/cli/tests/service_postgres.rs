@@ -7,37 +7,18 @@
 
 mod common;
 
+use common::jobs::{
+    api_client as client, assert_png, check_runs, get_json, kill_worker, long_bar, small_bar,
+    submit_job as submit, submit_long_then_small, tally, wait_for_all,
+};
 use common::postgres::{Postgres, postgres_bin};
 use common::*;
-use reqwest::blocking::Client;
 use serde_json::{Value, json};
-use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Small jobs submitted besides the one that is interrupted.
 const SMALL_JOBS: usize = 100;
-
-fn client() -> Client {
-    http_client(60)
-}
-
-fn submit(url: &str, scene: &Value) -> String {
-    let r = client()
-        .post(format!("{url}/v1/jobs"))
-        .json(scene)
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 202);
-    r.json::<Value>().unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string()
-}
-
-fn get_json(url: &str) -> Value {
-    client().get(url).send().unwrap().json().unwrap()
-}
 
 #[test]
 fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
@@ -80,16 +61,9 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
 
     // One job long enough to be caught running (a second or so), then the small ones.
     let start = Instant::now();
-    let mut long = bar_json();
-    long["domain"]["cell_size"] = json!(0.0125);
-    long["solver"]["end_time"] = json!(1.0);
-    long["output"]["frames"] = json!(10);
-    let long_id = submit(&url, &long);
-    let mut small = bar_json();
-    small["solver"]["end_time"] = json!(0.01);
-    small["output"]["frames"] = json!(4);
-    let mut ids = vec![long_id.clone()];
-    ids.extend((0..SMALL_JOBS).map(|_| submit(&url, &small)));
+    let long = long_bar(1.0, 10);
+    let ids = submit_long_then_small(&url, &long, &small_bar(), SMALL_JOBS);
+    let long_id = ids[0].clone();
 
     // Kill (SIGKILL) whichever worker runs the long job once it has made progress.
     let killed_name = loop {
@@ -100,16 +74,7 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
         );
         if j["status"] == "running" && j["progress"]["steps"].as_i64().unwrap_or(0) > 0 {
             let worker = j["worker"].as_str().unwrap().to_string();
-            let slot = workers
-                .iter_mut()
-                .find(|w| {
-                    w.as_ref()
-                        .is_some_and(|p| worker.contains(&format!(":{}:", p.0.id())))
-                })
-                .expect("the job's worker is one of ours");
-            let mut process = slot.take().unwrap();
-            process.0.kill().unwrap();
-            process.0.wait().unwrap();
+            kill_worker(&mut workers, &worker);
             break worker;
         }
         std::thread::sleep(Duration::from_millis(20));
@@ -117,54 +82,23 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
     let killed_at = start.elapsed();
 
     // Every job ends.
-    let mut statuses = BTreeMap::new();
-    for id in &ids {
-        let j = loop {
-            let j = get_json(&format!("{url}/v1/jobs/{id}"));
-            if matches!(
-                j["status"].as_str(),
-                Some("succeeded" | "failed" | "cancelled")
-            ) {
-                break j;
-            }
-            assert!(
-                start.elapsed() < Duration::from_secs(180),
-                "job {id} did not end: {j}\nworker logs:\n{}\n{}",
-                std::fs::read_to_string(dir.path().join("worker1.log")).unwrap_or_default(),
-                std::fs::read_to_string(dir.path().join("worker2.log")).unwrap_or_default()
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        *statuses
-            .entry(j["status"].as_str().unwrap().to_string())
-            .or_insert(0) += 1;
-    }
+    let logs = || {
+        (1..=2)
+            .map(|n| {
+                std::fs::read_to_string(dir.path().join(format!("worker{n}.log")))
+                    .unwrap_or_default()
+            })
+            .collect::<String>()
+    };
+    let finals = wait_for_all(&url, &ids, start, Duration::from_secs(180), logs);
     let elapsed = start.elapsed();
-    let failures = ids.len() - statuses.get("succeeded").copied().unwrap_or(0);
+    let (statuses, failures) = tally(&finals);
 
     // The runs table: exactly one successful run per job, nothing left open, and the only
     // other runs are the killed worker's, ended by its lease.
     let runs = pg.query("SELECT job_id, attempt, worker, COALESCE(outcome, 'open') FROM job_runs");
-    let mut per_job: BTreeMap<&str, Vec<&Vec<String>>> = BTreeMap::new();
-    for r in &runs {
-        per_job.entry(r[0].as_str()).or_default().push(r);
-    }
-    assert_eq!(per_job.len(), ids.len(), "every job ran");
-    let mut duplicates = 0;
-    for id in &ids {
-        let mine = &per_job[id.as_str()];
-        let succeeded = mine.iter().filter(|r| r[3] == "succeeded").count();
-        duplicates += succeeded.saturating_sub(1);
-        assert_eq!(succeeded, 1, "job {id} succeeded once: {mine:?}");
-        for r in mine.iter().filter(|r| r[3] != "succeeded") {
-            assert_eq!(r[3], "lease_expired", "{r:?}");
-            assert_eq!(
-                r[2], killed_name,
-                "only the killed worker lost a run: {r:?}"
-            );
-        }
-    }
-    let mut long_runs = per_job[long_id.as_str()].clone();
+    let (per_job, duplicates) = check_runs(&runs, &ids, &killed_name);
+    let mut long_runs = per_job[&long_id].clone();
     long_runs.sort_by_key(|r| r[1].parse::<i64>().unwrap());
     assert_eq!(
         long_runs.len(),
@@ -209,12 +143,7 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
     // store.
     let scene = get_json(&format!("{url}/v1/jobs/{long_id}/scene"));
     assert_eq!(scene["name"], long["name"]);
-    let picture = client()
-        .get(format!("{url}/v1/jobs/{long_id}/frames/-1.png"))
-        .send()
-        .unwrap();
-    assert_eq!(picture.status(), 200);
-    assert!(picture.bytes().unwrap().starts_with(b"\x89PNG\r\n\x1a\n"));
+    assert_png(&format!("{url}/v1/jobs/{long_id}/frames/-1.png"));
 
     // The surviving worker logged the requeueing, naming the worker that lost the job.
     let logs: String = (1..=2)

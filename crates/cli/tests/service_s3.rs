@@ -8,11 +8,14 @@
 
 mod common;
 
+use common::jobs::{
+    api_client as client, assert_png, check_runs, get_json, kill_worker, long_bar, small_bar,
+    submit_long_then_small, tally, wait_for_all,
+};
 use common::moto::{Moto, moto_server};
 use common::postgres::{Postgres, postgres_bin};
 use common::*;
 use serde_json::{Value, json};
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -21,27 +24,6 @@ use std::time::{Duration, Instant};
 const SMALL_JOBS: usize = 100;
 const BUCKET: &str = "mpm-results";
 const PREFIX: &str = "runs/test";
-
-fn client() -> reqwest::blocking::Client {
-    http_client(60)
-}
-
-fn submit(url: &str, scene: &Value) -> String {
-    let r = client()
-        .post(format!("{url}/v1/jobs"))
-        .json(scene)
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 202);
-    r.json::<Value>().unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string()
-}
-
-fn get_json(url: &str) -> Value {
-    client().get(url).send().unwrap().json().unwrap()
-}
 
 /// Downloads a job's whole store through the API (`/files`, then each file from
 /// `/results/...`, as a Zarr reader over HTTP would) into `to`.
@@ -178,17 +160,11 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
     // One job long enough to write and upload checkpoints (a few seconds), then the small
     // ones.
     let start = Instant::now();
-    let mut long = bar_json();
-    long["domain"]["cell_size"] = json!(0.0125);
-    long["solver"]["end_time"] = json!(4.0);
-    long["output"]["frames"] = json!(20);
+    let mut long = long_bar(4.0, 20);
     long["output"]["checkpoint"] = json!({"steps": 400});
-    let long_id = submit(&url, &long);
-    let mut small = bar_json();
-    small["solver"]["end_time"] = json!(0.01);
-    small["output"]["frames"] = json!(4);
-    let mut ids = vec![long_id.clone()];
-    ids.extend((0..SMALL_JOBS).map(|_| submit(&url, &small)));
+    let small = small_bar();
+    let ids = submit_long_then_small(&url, &long, &small, SMALL_JOBS);
+    let long_id = ids[0].clone();
 
     // Once the bucket's copy of the long job names a checkpoint, kill (SIGKILL) its worker.
     let (killed_name, uploaded_step) = loop {
@@ -210,70 +186,23 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
         let j = get_json(&format!("{url}/v1/jobs/{long_id}"));
         if let (Some(step), "running") = (step, j["status"].as_str().unwrap_or("")) {
             let worker = j["worker"].as_str().unwrap().to_string();
-            let slot = workers
-                .iter_mut()
-                .find(|w| {
-                    w.as_ref()
-                        .is_some_and(|p| worker.contains(&format!(":{}:", p.0.id())))
-                })
-                .expect("the job's worker is one of ours");
-            slot.take().unwrap().kill();
+            kill_worker(&mut workers, &worker);
             break (worker, step);
         }
         std::thread::sleep(Duration::from_millis(50));
     };
     let killed_at = start.elapsed();
 
-    // Every job ends.
-    let mut statuses = BTreeMap::new();
-    let mut finals = BTreeMap::new();
-    for id in &ids {
-        let j = loop {
-            let j = get_json(&format!("{url}/v1/jobs/{id}"));
-            if matches!(
-                j["status"].as_str(),
-                Some("succeeded" | "failed" | "cancelled")
-            ) {
-                break j;
-            }
-            assert!(
-                start.elapsed() < Duration::from_secs(180),
-                "job {id} did not end: {j}\nworker logs:\n{}",
-                logs()
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        *statuses
-            .entry(j["status"].as_str().unwrap().to_string())
-            .or_insert(0) += 1;
-        finals.insert(id.clone(), j);
-    }
+    // Every job ends (the limit is generous: the machine may be shared).
+    let finals = wait_for_all(&url, &ids, start, Duration::from_secs(400), logs);
     let elapsed = start.elapsed();
-    let failures = ids.len() - statuses.get("succeeded").copied().unwrap_or(0);
+    let (statuses, failures) = tally(&finals);
     assert_eq!(failures, 0, "{statuses:?}\n{finals:?}\n{}", logs());
 
     // Exactly one successful run per job; the only other run is the killed worker's.
     let runs = pg.query("SELECT job_id, attempt, worker, COALESCE(outcome, 'open') FROM job_runs");
-    let mut per_job: BTreeMap<&str, Vec<&Vec<String>>> = BTreeMap::new();
-    for r in &runs {
-        per_job.entry(r[0].as_str()).or_default().push(r);
-    }
-    assert_eq!(per_job.len(), ids.len(), "every job ran");
-    let mut duplicates = 0;
-    for id in &ids {
-        let mine = &per_job[id.as_str()];
-        let succeeded = mine.iter().filter(|r| r[3] == "succeeded").count();
-        duplicates += succeeded.saturating_sub(1);
-        assert_eq!(succeeded, 1, "job {id} succeeded once: {mine:?}");
-        for r in mine.iter().filter(|r| r[3] != "succeeded") {
-            assert_eq!(
-                (r[2].as_str(), r[3].as_str()),
-                (killed_name.as_str(), "lease_expired"),
-                "{r:?}"
-            );
-        }
-    }
-    let long_runs = &per_job[long_id.as_str()];
+    let (per_job, duplicates) = check_runs(&runs, &ids, &killed_name);
+    let long_runs = &per_job[&long_id];
     assert_eq!(long_runs.len(), 2, "{long_runs:?}");
     let survivor = long_runs
         .iter()
@@ -361,12 +290,7 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
         .send()
         .unwrap();
     assert_eq!(missing.status(), 404);
-    let picture = client()
-        .get(format!("{url}/v1/jobs/{long_id}/frames/-1.png"))
-        .send()
-        .unwrap();
-    assert_eq!(picture.status(), 200);
-    assert!(picture.bytes().unwrap().starts_with(b"\x89PNG\r\n\x1a\n"));
+    assert_png(&format!("{url}/v1/jobs/{long_id}/frames/-1.png"));
 
     // Nothing is left in the survivor's scratch folder: every store went to the bucket.
     let survivor_n = workers.iter().position(Option::is_some).unwrap() + 1;

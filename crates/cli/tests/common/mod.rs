@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod jobs;
 pub mod moto;
 pub mod postgres;
 
