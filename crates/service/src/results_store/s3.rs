@@ -436,3 +436,35 @@ async fn put(
         .await?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_below_a_store_are_plain_relative_paths() {
+        let base = Key::from("runs/job/results.zarr");
+        let key = |k: &str| relative(&Key::from(k), &base);
+        assert_eq!(
+            key("runs/job/results.zarr/particles/x/c/0/0").as_deref(),
+            Some("particles/x/c/0/0")
+        );
+        assert_eq!(
+            key("runs/job/results.zarr/zarr.json").as_deref(),
+            Some("zarr.json")
+        );
+        assert_eq!(key("runs/job/results.zarr"), None, "the base itself");
+        assert_eq!(key("runs/other/results.zarr/zarr.json"), None);
+        assert_eq!(key_of(&base, "a/b").as_ref(), "runs/job/results.zarr/a/b");
+    }
+
+    #[test]
+    fn the_checkpoint_pointer_is_read_from_the_root_metadata() {
+        let root = br#"{"zarr_format":3,"node_type":"group","attributes":
+            {"checkpoint":{"path":"checkpoints/800","step":800,"time":0.6,"frames":5}}}"#;
+        assert_eq!(checkpoint_in(root), Some(("checkpoints/800".into(), 800)));
+        assert_eq!(checkpoint_in(br#"{"attributes":{}}"#), None);
+        // Half-written metadata (read while the job's process rewrites it) names nothing.
+        assert_eq!(checkpoint_in(&root[..40]), None);
+    }
+}
