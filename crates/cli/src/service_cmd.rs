@@ -44,9 +44,14 @@ pub struct ServeArgs {
     /// Folder for the job database and results.
     #[arg(long, default_value = "mpm-data", env = "MPM_DATA")]
     pub data: PathBuf,
-    /// Folder of the result stores, shared with the workers (default: DATA/jobs).
+    /// Where the result stores are: a folder shared with the workers (default: DATA/jobs),
+    /// or `s3://BUCKET/PREFIX` (endpoint, region and keys from the AWS_* variables).
     #[arg(long, env = "MPM_STORE")]
-    pub store: Option<PathBuf>,
+    pub store: Option<String>,
+    /// With an S3 store: a local folder for copies of stores to draw pictures from (and the
+    /// jobs of this process's own workers) (default: DATA/scratch).
+    #[arg(long, env = "MPM_SCRATCH")]
+    pub scratch: Option<PathBuf>,
     /// Require `Authorization: Bearer TOKEN` on every route but /v1/health.
     #[arg(long, env = "MPM_TOKEN", conflicts_with = "tokens")]
     pub token: Option<String>,
@@ -90,9 +95,14 @@ pub struct ServeArgs {
 /// Options of `mpm worker`.
 #[derive(Debug, clap::Args)]
 pub struct WorkerArgs {
-    /// Folder of the result stores, the same one the API serves (`mpm serve --store`).
+    /// Where the result stores are, as the API has them (`mpm serve --store`): the shared
+    /// folder, or `s3://BUCKET/PREFIX`.
     #[arg(long, env = "MPM_STORE")]
-    pub store: PathBuf,
+    pub store: String,
+    /// With an S3 store: this machine's folder where jobs write before their stores are
+    /// uploaded (default: mpm-scratch in the temporary folder).
+    #[arg(long, env = "MPM_SCRATCH")]
+    pub scratch: Option<PathBuf>,
     /// Jobs run at once by this process.
     #[arg(long, default_value_t = 1)]
     pub workers: usize,
@@ -157,6 +167,23 @@ fn base_config(queue: &QueueArgs) -> anyhow::Result<mpm_service::Config> {
     })
 }
 
+/// Reads `--store` (exit 2 on a malformed one).
+fn store_location(text: &str) -> anyhow::Result<mpm_service::StoreLocation> {
+    mpm_service::StoreLocation::parse(text)
+        .map_err(|e| crate::exit_status::input_error!("--store {e}"))
+}
+
+/// A bucket the server does not have is an input error (exit 2, before listening); a folder
+/// that cannot be created or an unreachable server stays an operational failure (1).
+fn service_result(result: Result<(), mpm_service::ServiceError>) -> anyhow::Result<()> {
+    match result {
+        Err(mpm_service::ServiceError::Store(e)) if e.is_input() => {
+            Err(crate::exit_status::input_error!("--store: {e}"))
+        }
+        other => Ok(other?),
+    }
+}
+
 /// `mpm serve`.
 pub fn serve(args: ServeArgs, registry: Arc<Registry>) -> anyhow::Result<ExitStatus> {
     init_logs(args.queue.log_format);
@@ -176,7 +203,8 @@ pub fn serve(args: ServeArgs, registry: Arc<Registry>) -> anyhow::Result<ExitSta
         max_steps: args.max_steps,
         listen: args.listen,
         data_dir: args.data,
-        store_dir: args.store,
+        store: args.store.as_deref().map(store_location).transpose()?,
+        scratch_dir: args.scratch,
         token: args.token,
         workers: args.workers,
         max_body_bytes: args.max_body_bytes,
@@ -188,7 +216,7 @@ pub fn serve(args: ServeArgs, registry: Arc<Registry>) -> anyhow::Result<ExitSta
         frame_renderer: Some(Arc::new(crate::render::ServiceRenderer)),
         ..base_config(&args.queue)?
     };
-    runtime()?.block_on(mpm_service::serve(config, registry, stop_signal()))?;
+    service_result(runtime()?.block_on(mpm_service::serve(config, registry, stop_signal())))?;
     Ok(ExitStatus::Success)
 }
 
@@ -200,12 +228,22 @@ pub fn worker(args: WorkerArgs, registry: Arc<Registry>) -> anyhow::Result<ExitS
             "mpm worker needs --database (or MPM_DATABASE): the queue it shares with `mpm serve`"
         ));
     }
+    let store = store_location(&args.store)?;
+    let scratch = args
+        .scratch
+        .unwrap_or_else(|| std::env::temp_dir().join("mpm-scratch"));
+    // The jobs' base folder: the shared folder, or with S3 this machine's scratch folder.
+    let data_dir = match &store {
+        mpm_service::StoreLocation::Folder(dir) => dir.clone(),
+        mpm_service::StoreLocation::S3 { .. } => scratch.clone(),
+    };
     let config = mpm_service::Config {
-        data_dir: args.store.clone(),
-        store_dir: Some(args.store),
+        data_dir,
+        store: Some(store),
+        scratch_dir: Some(scratch),
         workers: args.workers.max(1),
         ..base_config(&args.queue)?
     };
-    runtime()?.block_on(mpm_service::work(config, registry, stop_signal()))?;
+    service_result(runtime()?.block_on(mpm_service::work(config, registry, stop_signal())))?;
     Ok(ExitStatus::Success)
 }

@@ -7,195 +7,18 @@
 
 mod common;
 
+use common::jobs::{
+    api_client as client, assert_png, check_runs, get_json, kill_worker, long_bar, small_bar,
+    submit_job as submit, submit_long_then_small, tally, wait_for_all,
+};
+use common::postgres::{Postgres, postgres_bin};
 use common::*;
-use reqwest::blocking::Client;
 use serde_json::{Value, json};
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Small jobs submitted besides the one that is interrupted.
 const SMALL_JOBS: usize = 100;
-
-/// The folder holding `initdb`, `pg_ctl`, `createdb` and `psql`: `$PG_BIN`, else the newest
-/// `/usr/lib/postgresql/*/bin` (Debian), else the folder of `pg_ctl` on the PATH.
-fn postgres_bin() -> Option<PathBuf> {
-    let has_all = |dir: &Path| {
-        ["initdb", "pg_ctl", "createdb", "psql"]
-            .iter()
-            .all(|b| dir.join(b).is_file())
-    };
-    if let Some(dir) = std::env::var_os("PG_BIN").map(PathBuf::from) {
-        return has_all(&dir).then_some(dir);
-    }
-    let mut debian: Vec<(u32, PathBuf)> = std::fs::read_dir("/usr/lib/postgresql")
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter_map(|e| {
-            let version = e.file_name().to_str()?.parse::<u32>().ok()?;
-            Some((version, e.path().join("bin")))
-        })
-        .filter(|(_, dir)| has_all(dir))
-        .collect();
-    debian.sort();
-    if let Some((_, dir)) = debian.pop() {
-        return Some(dir);
-    }
-    std::env::var_os("PATH").and_then(|path| std::env::split_paths(&path).find(|dir| has_all(dir)))
-}
-
-/// A PostgreSQL server of this test; stopped (immediately) and deleted when dropped, also
-/// when the test fails.
-struct Postgres {
-    bin: PathBuf,
-    dir: tempfile::TempDir,
-    /// Runs the server's commands as this user (PostgreSQL refuses to run as root).
-    user: Option<String>,
-    port: u16,
-}
-
-fn is_root() -> bool {
-    Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
-}
-
-impl Postgres {
-    fn command(&self, program: &str) -> Command {
-        let path = self.bin.join(program);
-        match &self.user {
-            Some(user) => {
-                let mut c = Command::new("runuser");
-                c.args(["-u", user, "--"]).arg(path);
-                c
-            }
-            None => Command::new(path),
-        }
-    }
-
-    fn start(bin: PathBuf) -> Postgres {
-        let dir = tempfile::tempdir().unwrap();
-        // As root: the server runs as `postgres` (the Debian package's user), which must own
-        // the folder.
-        let user = is_root().then(|| "postgres".to_string());
-        if let Some(user) = &user {
-            let status = Command::new("chown")
-                .arg(user)
-                .arg(dir.path())
-                .status()
-                .unwrap();
-            assert!(
-                status.success(),
-                "chown {user} failed: is there a `{user}` user?"
-            );
-        }
-        let port = std::net::TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
-        let pg = Postgres {
-            bin,
-            dir,
-            user,
-            port,
-        };
-        let data = pg.dir.path().join("data");
-        let o = pg
-            .command("initdb")
-            .args(["-A", "trust", "-U", "mpm", "-E", "UTF8", "--no-sync", "-D"])
-            .arg(&data)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "initdb: {}", text(&o));
-        let options = format!(
-            "-p {port} -k {} -c listen_addresses=127.0.0.1 -c fsync=off \
-             -c synchronous_commit=off -c full_page_writes=off",
-            pg.dir.path().display()
-        );
-        let o = pg
-            .command("pg_ctl")
-            .args(["-w", "-t", "60", "-D"])
-            .arg(&data)
-            .args(["-o", &options, "-l"])
-            .arg(pg.dir.path().join("server.log"))
-            .arg("start")
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "pg_ctl start: {}", text(&o));
-        let o = pg
-            .command("createdb")
-            .args([
-                "-h",
-                "127.0.0.1",
-                "-p",
-                &port.to_string(),
-                "-U",
-                "mpm",
-                "mpm",
-            ])
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "createdb: {}", text(&o));
-        pg
-    }
-
-    fn url(&self) -> String {
-        format!("postgres://mpm@127.0.0.1:{}/mpm", self.port)
-    }
-
-    /// Rows of a query, columns split on `|`.
-    fn query(&self, sql: &str) -> Vec<Vec<String>> {
-        let o = Command::new(self.bin.join("psql"))
-            .args(["-h", "127.0.0.1", "-p", &self.port.to_string(), "-U", "mpm"])
-            .args(["-d", "mpm", "-A", "-t", "-F", "|", "-c", sql])
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "psql: {}", text(&o));
-        String::from_utf8_lossy(&o.stdout)
-            .lines()
-            .filter(|l| !l.is_empty())
-            .map(|l| l.split('|').map(str::to_string).collect())
-            .collect()
-    }
-}
-
-impl Drop for Postgres {
-    fn drop(&mut self) {
-        let _ = self
-            .command("pg_ctl")
-            .args(["-D"])
-            .arg(self.dir.path().join("data"))
-            .args(["-m", "immediate", "-w", "stop"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status();
-    }
-}
-
-fn client() -> Client {
-    http_client(60)
-}
-
-fn submit(url: &str, scene: &Value) -> String {
-    let r = client()
-        .post(format!("{url}/v1/jobs"))
-        .json(scene)
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 202);
-    r.json::<Value>().unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string()
-}
-
-fn get_json(url: &str) -> Value {
-    client().get(url).send().unwrap().json().unwrap()
-}
 
 #[test]
 fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
@@ -238,16 +61,9 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
 
     // One job long enough to be caught running (a second or so), then the small ones.
     let start = Instant::now();
-    let mut long = bar_json();
-    long["domain"]["cell_size"] = json!(0.0125);
-    long["solver"]["end_time"] = json!(1.0);
-    long["output"]["frames"] = json!(10);
-    let long_id = submit(&url, &long);
-    let mut small = bar_json();
-    small["solver"]["end_time"] = json!(0.01);
-    small["output"]["frames"] = json!(4);
-    let mut ids = vec![long_id.clone()];
-    ids.extend((0..SMALL_JOBS).map(|_| submit(&url, &small)));
+    let long = long_bar(1.0, 10);
+    let ids = submit_long_then_small(&url, &long, &small_bar(), SMALL_JOBS);
+    let long_id = ids[0].clone();
 
     // Kill (SIGKILL) whichever worker runs the long job once it has made progress.
     let killed_name = loop {
@@ -258,16 +74,7 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
         );
         if j["status"] == "running" && j["progress"]["steps"].as_i64().unwrap_or(0) > 0 {
             let worker = j["worker"].as_str().unwrap().to_string();
-            let slot = workers
-                .iter_mut()
-                .find(|w| {
-                    w.as_ref()
-                        .is_some_and(|p| worker.contains(&format!(":{}:", p.0.id())))
-                })
-                .expect("the job's worker is one of ours");
-            let mut process = slot.take().unwrap();
-            process.0.kill().unwrap();
-            process.0.wait().unwrap();
+            kill_worker(&mut workers, &worker);
             break worker;
         }
         std::thread::sleep(Duration::from_millis(20));
@@ -275,54 +82,23 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
     let killed_at = start.elapsed();
 
     // Every job ends.
-    let mut statuses = BTreeMap::new();
-    for id in &ids {
-        let j = loop {
-            let j = get_json(&format!("{url}/v1/jobs/{id}"));
-            if matches!(
-                j["status"].as_str(),
-                Some("succeeded" | "failed" | "cancelled")
-            ) {
-                break j;
-            }
-            assert!(
-                start.elapsed() < Duration::from_secs(180),
-                "job {id} did not end: {j}\nworker logs:\n{}\n{}",
-                std::fs::read_to_string(dir.path().join("worker1.log")).unwrap_or_default(),
-                std::fs::read_to_string(dir.path().join("worker2.log")).unwrap_or_default()
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        *statuses
-            .entry(j["status"].as_str().unwrap().to_string())
-            .or_insert(0) += 1;
-    }
+    let logs = || {
+        (1..=2)
+            .map(|n| {
+                std::fs::read_to_string(dir.path().join(format!("worker{n}.log")))
+                    .unwrap_or_default()
+            })
+            .collect::<String>()
+    };
+    let finals = wait_for_all(&url, &ids, start, Duration::from_secs(180), logs);
     let elapsed = start.elapsed();
-    let failures = ids.len() - statuses.get("succeeded").copied().unwrap_or(0);
+    let (statuses, failures) = tally(&finals);
 
     // The runs table: exactly one successful run per job, nothing left open, and the only
     // other runs are the killed worker's, ended by its lease.
     let runs = pg.query("SELECT job_id, attempt, worker, COALESCE(outcome, 'open') FROM job_runs");
-    let mut per_job: BTreeMap<&str, Vec<&Vec<String>>> = BTreeMap::new();
-    for r in &runs {
-        per_job.entry(r[0].as_str()).or_default().push(r);
-    }
-    assert_eq!(per_job.len(), ids.len(), "every job ran");
-    let mut duplicates = 0;
-    for id in &ids {
-        let mine = &per_job[id.as_str()];
-        let succeeded = mine.iter().filter(|r| r[3] == "succeeded").count();
-        duplicates += succeeded.saturating_sub(1);
-        assert_eq!(succeeded, 1, "job {id} succeeded once: {mine:?}");
-        for r in mine.iter().filter(|r| r[3] != "succeeded") {
-            assert_eq!(r[3], "lease_expired", "{r:?}");
-            assert_eq!(
-                r[2], killed_name,
-                "only the killed worker lost a run: {r:?}"
-            );
-        }
-    }
-    let mut long_runs = per_job[long_id.as_str()].clone();
+    let (per_job, duplicates) = check_runs(&runs, &ids, &killed_name);
+    let mut long_runs = per_job[&long_id].clone();
     long_runs.sort_by_key(|r| r[1].parse::<i64>().unwrap());
     assert_eq!(
         long_runs.len(),
@@ -367,12 +143,7 @@ fn two_workers_on_postgres_one_killed_every_job_runs_to_the_end_once() {
     // store.
     let scene = get_json(&format!("{url}/v1/jobs/{long_id}/scene"));
     assert_eq!(scene["name"], long["name"]);
-    let picture = client()
-        .get(format!("{url}/v1/jobs/{long_id}/frames/-1.png"))
-        .send()
-        .unwrap();
-    assert_eq!(picture.status(), 200);
-    assert!(picture.bytes().unwrap().starts_with(b"\x89PNG\r\n\x1a\n"));
+    assert_png(&format!("{url}/v1/jobs/{long_id}/frames/-1.png"));
 
     // The surviving worker logged the requeueing, naming the worker that lost the job.
     let logs: String = (1..=2)

@@ -21,6 +21,17 @@ pub enum ServiceError {
     /// A migration failed.
     #[error("job database migration: {0}")]
     Migration(#[from] sqlx::migrate::MigrateError),
+    /// The result store could not be opened (a missing bucket, an unreachable server, a
+    /// folder that cannot be created). Its message already holds its causes (no `source`,
+    /// so that `{:#}` does not print them twice).
+    #[error("result store: {0}")]
+    Store(crate::StoreError),
+}
+
+impl From<crate::StoreError> for ServiceError {
+    fn from(e: crate::StoreError) -> Self {
+        Self::Store(e)
+    }
 }
 
 /// One problem in a request, at a JSON path of the submitted scene when there is one.

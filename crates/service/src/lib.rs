@@ -1,9 +1,9 @@
 //! The mpm job service: an HTTP API (axum) over a job queue in SQLite or PostgreSQL (sqlx).
 //! Workers (in the API's process, or in `mpm worker` processes on other machines) take jobs
 //! in submission order under a lease, run them with the core solver off the async threads,
-//! and store the results as Zarr in the store folder, served read-only so zarr-python can
-//! open them over HTTP. Knows no physics: scenes are validated by the registry the binary
-//! passes in.
+//! and store the results as Zarr in the store folder or an S3 bucket (`results_store`),
+//! served read-only so zarr-python can open them over HTTP. Knows no physics: scenes are
+//! validated by the registry the binary passes in.
 
 mod api;
 mod child;
@@ -11,6 +11,7 @@ mod db;
 mod error;
 mod frames;
 mod metrics;
+mod results_store;
 mod resume;
 mod users;
 mod worker;
@@ -20,6 +21,7 @@ pub use child::{JobCommand, default_job_memory, run_job_process};
 pub use error::ServiceError;
 pub use frames::{FrameError, FrameRenderer, FrameRequest};
 pub use mpm_core::scene::Limits;
+pub use results_store::{StoreError, StoreLocation};
 pub use users::{User, Users, UsersError, token_hash};
 
 use mpm_core::plugin::Registry;
@@ -32,13 +34,17 @@ use std::sync::Arc;
 pub struct Config {
     /// Address to listen on (127.0.0.1:8080 by default; port 0 picks a free one).
     pub listen: SocketAddr,
-    /// Folder for the job database (`jobs.sqlite`) and the results (`jobs/<id>/results.zarr`).
+    /// Folder for the job database (`jobs.sqlite`), the results (`jobs/<id>/results.zarr`)
+    /// and the scratch folder, unless those are given.
     pub data_dir: PathBuf,
     /// The queue database: `postgres://...`, or a SQLite file; `None`: `data_dir/jobs.sqlite`.
     pub database: Option<String>,
-    /// Folder of the result stores (`<id>/results.zarr`), shared by the API and every
-    /// worker; `None`: `data_dir/jobs`.
-    pub store_dir: Option<PathBuf>,
+    /// Where the result stores are: a folder of `<id>/results.zarr` shared by the API and
+    /// every worker, or an S3 bucket and prefix; `None`: the folder `data_dir/jobs`.
+    pub store: Option<StoreLocation>,
+    /// With an S3 store, this process's own folder where jobs write before their stores are
+    /// uploaded (and where the API keeps copies to draw from); `None`: `data_dir/scratch`.
+    pub scratch_dir: Option<PathBuf>,
     /// A running job's lease: its worker renews it every third of this; a job whose lease
     /// ran out (its worker died) goes back to the queue.
     pub lease: std::time::Duration,
@@ -86,7 +92,8 @@ impl Default for Config {
             listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
             data_dir: PathBuf::from("mpm-data"),
             database: None,
-            store_dir: None,
+            store: None,
+            scratch_dir: None,
             lease: std::time::Duration::from_secs(30),
             poll: std::time::Duration::from_millis(500),
             token: None,
@@ -109,10 +116,17 @@ impl Default for Config {
 
 impl Config {
     /// Where the result stores are.
-    pub fn store_root(&self) -> PathBuf {
-        self.store_dir
+    pub fn store_location(&self) -> StoreLocation {
+        self.store
             .clone()
-            .unwrap_or_else(|| self.data_dir.join("jobs"))
+            .unwrap_or_else(|| StoreLocation::Folder(self.data_dir.join("jobs")))
+    }
+
+    /// This process's scratch folder (used with an S3 store).
+    fn scratch(&self) -> PathBuf {
+        self.scratch_dir
+            .clone()
+            .unwrap_or_else(|| self.data_dir.join("scratch"))
     }
 
     /// The database to open.
@@ -131,6 +145,8 @@ pub(crate) struct State {
     pub config: Config,
     pub registry: Arc<Registry>,
     pub db: db::Db,
+    /// The result stores (a folder or a bucket).
+    pub results: results_store::ResultsStore,
     pub jobs: worker::JobBoard,
     /// Permits for validations running at once.
     pub validations: Arc<tokio::sync::Semaphore>,
@@ -140,13 +156,11 @@ pub(crate) struct State {
     pub renders: Arc<tokio::sync::Semaphore>,
 }
 
-/// Creates the folders, opens the database and builds the shared state.
+/// Opens the result stores (creating the folders; checking an S3 bucket answers), opens the
+/// database and builds the shared state.
 async fn start(config: Config, registry: Arc<Registry>) -> Result<Arc<State>, ServiceError> {
-    let store = config.store_root();
-    std::fs::create_dir_all(&store).map_err(|e| ServiceError::Io {
-        path: store.display().to_string(),
-        source: e,
-    })?;
+    let results =
+        results_store::ResultsStore::open(&config.store_location(), &config.scratch()).await?;
     let db = db::Db::open(&config.database_url()).await?;
     Ok(Arc::new(State {
         validations: Arc::new(tokio::sync::Semaphore::new(config.max_validations.max(1))),
@@ -154,6 +168,7 @@ async fn start(config: Config, registry: Arc<Registry>) -> Result<Arc<State>, Se
         config,
         registry,
         db,
+        results,
         jobs: worker::JobBoard::default(),
         metrics: metrics::Metrics::default(),
     }))
@@ -186,7 +201,8 @@ pub async fn serve(
         source: e,
     })?;
     println!("listening on http://{addr}");
-    tracing::info!(%addr, database = state.db.backend(), workers = config.workers, "listening");
+    let store = config.store_location().to_string();
+    tracing::info!(%addr, database = state.db.backend(), %store, workers = config.workers, "listening");
     if requeued > 0 {
         println!("requeued {requeued} job(s) interrupted by the last shutdown");
         tracing::info!(requeued, "jobs interrupted by the last shutdown requeued");
@@ -219,7 +235,8 @@ pub async fn serve(
 }
 
 /// Runs `config.workers` workers (at least one) with no HTTP API until `shutdown` resolves:
-/// `mpm worker`, on any number of machines sharing a PostgreSQL queue and a result folder.
+/// `mpm worker`, on any number of machines sharing a PostgreSQL queue and a result folder
+/// or bucket.
 pub async fn work(
     config: Config,
     registry: Arc<Registry>,

@@ -6,9 +6,9 @@
 use crate::State;
 use crate::child::ChildEnd;
 use crate::db::Claimed;
+use crate::results_store::JobSync;
 use mpm_core::solver::{Control, Progress, RunError};
 use std::collections::HashMap;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -58,11 +58,6 @@ impl JobBoard {
             flag.store(true, Ordering::Relaxed);
         }
     }
-}
-
-/// Where a job's results live: `<store>/<id>/results.zarr`.
-pub fn results_path(state: &State, id: &str) -> PathBuf {
-    state.config.store_root().join(id).join("results.zarr")
 }
 
 /// A name for this process's `n`th worker that is unique across machines:
@@ -195,6 +190,40 @@ async fn keep_lease(
     }
 }
 
+/// How often a running job's store is looked at for a new checkpoint to upload (S3).
+const CHECKPOINT_POLL: Duration = Duration::from_secs(1);
+
+/// Uploads a running job's store whenever it names a new checkpoint (S3 stores; a no-op
+/// for a folder), until `stop`; returns the mirror for the final upload.
+async fn upload_checkpoints(
+    mut sync: JobSync,
+    id: String,
+    mut stop: watch::Receiver<bool>,
+) -> JobSync {
+    if !sync.is_remote() {
+        return sync;
+    }
+    loop {
+        tokio::select! {
+            _ = tokio::time::sleep(CHECKPOINT_POLL) => {}
+            _ = stop.changed() => return sync,
+        }
+        match sync.checkpoint().await {
+            Ok(Some(step)) => tracing::info!(job = %id, step, "checkpoint uploaded"),
+            Ok(None) => {}
+            Err(e) => tracing::warn!(job = %id, error = %e, "uploading a checkpoint failed"),
+        }
+    }
+}
+
+/// The job's heartbeat: `None` once it ended or was stopped.
+type Heartbeat = Option<tokio::task::JoinHandle<bool>>;
+
+/// JSON text of a failure with a message.
+fn failure_text(message: String) -> Option<String> {
+    serde_json::to_string(&serde_json::json!({ "message": message })).ok()
+}
+
 async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     let Claimed {
         id,
@@ -203,17 +232,57 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         particles,
         ..
     } = claimed;
+    // The lease is renewed from the start: downloading and uploading a large store take
+    // time too.
     let flag = state.jobs.register(&id);
-    let heartbeat = tokio::spawn(keep_lease(
+    let mut heartbeat = Some(tokio::spawn(keep_lease(
         state.clone(),
         id.clone(),
         worker.to_string(),
         flag.clone(),
-    ));
+    )));
+    // With an S3 store, an earlier attempt's store (and checkpoint) comes down first.
+    let end = match state.results.prepare(&id, attempt).await {
+        Ok(sync) => run_attempt(state, worker, &id, scene, flag, sync, &mut heartbeat).await,
+        Err(e) => Some((
+            "failed",
+            None,
+            failure_text(format!(
+                "fetching the job's store from the result store failed: {e}"
+            )),
+            None,
+        )),
+    };
+    state.jobs.remove(&id);
+    // `None`: the lease was lost (another worker may own the job now), or the job goes
+    // back to the queue as this worker stops; nothing is recorded.
+    let Some(end) = end else { return };
+    if lease_lost(&mut heartbeat).await {
+        return;
+    }
+    if let Some(h) = heartbeat {
+        h.abort();
+    }
+    record_end(state, &id, worker, attempt, particles, end).await;
+}
+
+/// Runs a claimed job, uploading its store at checkpoints and at the end (S3); returns how
+/// it ended, or `None` when nothing is to be recorded (see [`run_job`]).
+async fn run_attempt(
+    state: &Arc<State>,
+    worker: &str,
+    id: &str,
+    scene: String,
+    flag: Arc<AtomicBool>,
+    sync: JobSync,
+    heartbeat: &mut Heartbeat,
+) -> Option<End> {
+    let (stop_uploads, uploads_stop) = watch::channel(false);
+    let uploads = tokio::spawn(upload_checkpoints(sync, id.to_string(), uploads_stop));
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<(u64, f64, f64)>();
     let writer = {
         let db = state.db.clone();
-        let id = id.clone();
+        let id = id.to_string();
         let worker = worker.to_string();
         tokio::spawn(async move {
             while let Some((step, time, wall)) = rx.recv().await {
@@ -226,13 +295,9 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     let last = Arc::new(Mutex::new((0u64, 0.0f64, 0.0f64)));
     let outcome = match &state.config.job_command {
         Some(command) => {
-            let job_dir = results_path(state, &id)
-                .parent()
-                .map(PathBuf::from)
-                .unwrap_or_default();
             crate::child::run_in_child(
                 command,
-                &job_dir,
+                &state.results.job_dir(id),
                 &state.config.data_dir,
                 &scene,
                 flag.clone(),
@@ -241,31 +306,43 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
             )
             .await
         }
-        None => run_in_process(state, &id, scene, flag.clone(), tx, last.clone()).await,
+        None => run_in_process(state, id, scene, flag.clone(), tx, last.clone()).await,
     };
     let _ = writer.await;
-    state.jobs.remove(&id);
-    let lost = if heartbeat.is_finished() {
-        heartbeat.await.unwrap_or(false)
-    } else {
-        heartbeat.abort();
-        false
+    let _ = stop_uploads.send(true);
+    let sync = match uploads.await {
+        Ok(sync) => Some(sync),
+        Err(e) => {
+            tracing::error!(job = %id, error = %e, "the checkpoint uploads failed unexpectedly");
+            None
+        }
     };
-    if lost {
-        // Another worker may own the job now; nothing of this run is recorded.
-        return;
+    if lease_lost(heartbeat).await {
+        // Another worker may own the job now; nothing of this run is uploaded.
+        if let Some(sync) = sync {
+            sync.discard().await;
+        }
+        return None;
+    }
+    // The store goes up before the job's end is recorded, so a finished job's store is
+    // whole when read; also when the job goes back to the queue (another machine resumes
+    // it from what was uploaded). The lease is still renewed meanwhile.
+    let uploaded = match sync {
+        Some(sync) => sync.finish().await.map_err(|e| e.to_string()),
+        None => Err("the upload task failed".to_string()),
+    };
+    if let Err(e) = &uploaded {
+        tracing::error!(job = %id, error = %e, "uploading the job's store failed");
     }
     let progress = *last.lock().expect("progress lock");
     let shutting_down = state.jobs.shutting_down.load(Ordering::Relaxed);
-    let failed =
-        |message: String| serde_json::to_string(&serde_json::json!({ "message": message })).ok();
     let (status, metrics, failure, progress) = match outcome {
         ChildEnd::Metrics(m) => {
             let metrics = serde_json::to_string(&m).ok();
             match m["outcome"].as_str() {
                 Some("finished") => ("succeeded", metrics, None, Some(progress)),
                 // Left `running`: the worker gives it back to the queue as it stops.
-                Some("cancelled") if shutting_down => return,
+                Some("cancelled") if shutting_down => return None,
                 Some("cancelled") => ("cancelled", metrics, None, Some(progress)),
                 _ => {
                     let failure = serde_json::to_string(&serde_json::json!({
@@ -277,14 +354,51 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
                 }
             }
         }
-        ChildEnd::Refused(message) => ("failed", None, failed(message), None),
-        ChildEnd::Crashed(_) if shutting_down => return,
-        ChildEnd::Crashed(message) => ("failed", None, failed(message), Some(progress)),
+        ChildEnd::Refused(message) => ("failed", None, failure_text(message), None),
+        ChildEnd::Crashed(_) if shutting_down => return None,
+        ChildEnd::Crashed(message) => ("failed", None, failure_text(message), Some(progress)),
     };
+    Some(match uploaded {
+        Err(e) if status != "cancelled" => (
+            "failed",
+            metrics,
+            failure_text(format!("the run ended but uploading its store failed: {e}")),
+            progress,
+        ),
+        _ => (status, metrics, failure, progress),
+    })
+}
+
+/// Whether the job's heartbeat ended because the lease was lost (it runs until aborted
+/// otherwise); a heartbeat that ended is taken out.
+async fn lease_lost(heartbeat: &mut Heartbeat) -> bool {
+    match heartbeat.take_if(|h| h.is_finished()) {
+        Some(h) => h.await.unwrap_or(false),
+        None => false,
+    }
+}
+
+/// What a run ends with: status, metrics, failure (JSON text) and last progress.
+type End = (
+    &'static str,
+    Option<String>,
+    Option<String>,
+    Option<(u64, f64, f64)>,
+);
+
+/// Records a run's end (under its lease) and logs it.
+async fn record_end(
+    state: &Arc<State>,
+    id: &str,
+    worker: &str,
+    attempt: i64,
+    particles: i64,
+    (status, metrics, failure, progress): End,
+) {
     let failure_message = failure.clone();
     match state
         .db
-        .finish(&id, worker, attempt, status, metrics, failure, progress)
+        .finish(id, worker, attempt, status, metrics, failure, progress)
         .await
     {
         Ok(true) => {
@@ -327,7 +441,7 @@ async fn run_in_process(
     tx: tokio::sync::mpsc::UnboundedSender<(u64, f64, f64)>,
     last: Arc<Mutex<(u64, f64, f64)>>,
 ) -> ChildEnd {
-    let store = results_path(state, id);
+    let store = state.results.results_dir(id);
     let registry = state.registry.clone();
     let data_dir = state.config.data_dir.clone();
     let limits = state.config.limits;

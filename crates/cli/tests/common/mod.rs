@@ -1,6 +1,10 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod jobs;
+pub mod moto;
+pub mod postgres;
+
 use mpm_core::output::{Frame, Metrics, NullSink, OutputError, OutputSink, RunInfo};
 use mpm_core::scene::ValidatedScene;
 use mpm_core::solver::{Control, Progress, run_scene};

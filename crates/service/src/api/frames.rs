@@ -6,7 +6,6 @@ use super::access::Caller;
 use super::{Shared, find};
 use crate::error::ApiError;
 use crate::frames::{FrameError, FrameRequest};
-use crate::worker;
 use axum::Extension;
 use axum::extract::{Path, Query};
 use axum::http::{StatusCode, header};
@@ -55,10 +54,11 @@ pub(super) async fn frame_png(
             "this service draws no pictures",
         ));
     };
-    let store = worker::results_path(&state, &row.id);
-    if !tokio::fs::try_exists(store.join("zarr.json"))
+    if !state
+        .results
+        .has_results(&row.id)
         .await
-        .unwrap_or(false)
+        .map_err(ApiError::internal)?
     {
         return Err(ApiError::not_found(format!(
             "job {} has no results yet ({})",
@@ -80,9 +80,15 @@ pub(super) async fn frame_png(
         frame,
         component: q.component.unwrap_or(0),
     };
+    // The store as a local folder (in place, or copied down from a bucket).
+    let store = state
+        .results
+        .local_copy(&row.id, crate::db::is_final(&row.status))
+        .await
+        .map_err(ApiError::internal)?;
     // Drawing reads the store and rasterises: off the async threads. A panic in it ends
     // this request with a 500, not the service.
-    let drawn = tokio::task::spawn_blocking(move || renderer.render_png(&store, &request))
+    let drawn = tokio::task::spawn_blocking(move || renderer.render_png(&store.path, &request))
         .await
         .map_err(ApiError::internal)?;
     match drawn {

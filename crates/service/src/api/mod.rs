@@ -10,7 +10,7 @@ use access::{Caller, authorize, forbidden, log_request, metrics};
 use submit::submit;
 
 use crate::error::ApiError;
-use crate::{State, db, worker};
+use crate::{State, db};
 use axum::extract::{DefaultBodyLimit, Path, Query};
 use axum::http::{StatusCode, header};
 use axum::middleware;
@@ -21,7 +21,7 @@ use axum::{Extension, Json, Router};
 use futures_util::stream::{self, Stream};
 use serde::Deserialize;
 use std::convert::Infallible;
-use std::path::{Component, PathBuf};
+use std::path::{Component, Path as FilePath};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::watch;
@@ -242,28 +242,11 @@ async fn files(
     Path(id): Path<String>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let row = find(&state, &id, &caller).await?;
-    let root = worker::results_path(&state, &row.id);
-    let list = tokio::task::spawn_blocking(move || {
-        let mut out = Vec::new();
-        let mut stack = vec![root.clone()];
-        while let Some(dir) = stack.pop() {
-            let Ok(entries) = std::fs::read_dir(&dir) else {
-                continue;
-            };
-            for entry in entries.flatten() {
-                let path = entry.path();
-                if path.is_dir() {
-                    stack.push(path);
-                } else if let Ok(rel) = path.strip_prefix(&root) {
-                    out.push(rel.to_string_lossy().replace('\\', "/"));
-                }
-            }
-        }
-        out.sort();
-        out
-    })
-    .await
-    .map_err(ApiError::internal)?;
+    let list = state
+        .results
+        .list(&row.id)
+        .await
+        .map_err(ApiError::internal)?;
     Ok(Json(serde_json::json!({ "files": list })))
 }
 
@@ -291,7 +274,7 @@ async fn serve_file(
     caller: &Caller,
 ) -> Result<Response, ApiError> {
     let row = find(state, id, caller).await?;
-    let relative = PathBuf::from(path);
+    let relative = FilePath::new(path);
     let safe = !path.is_empty()
         && !path.contains('\\')
         && !path.contains('\0')
@@ -303,9 +286,13 @@ async fn serve_file(
             "no file `{path}` in the results"
         )));
     }
-    let full = worker::results_path(state, &row.id).join(&relative);
-    match tokio::fs::read(&full).await {
-        Ok(bytes) => {
+    match state
+        .results
+        .read(&row.id, path)
+        .await
+        .map_err(ApiError::internal)?
+    {
+        Some(bytes) => {
             let kind = if path.ends_with(".json") {
                 "application/json"
             } else {
@@ -313,7 +300,7 @@ async fn serve_file(
             };
             Ok(([(header::CONTENT_TYPE, kind)], bytes).into_response())
         }
-        Err(_) => Err(ApiError::not_found(format!(
+        None => Err(ApiError::not_found(format!(
             "no file `{path}` in the results"
         ))),
     }
