@@ -175,6 +175,9 @@ pub struct ParticleView<'a, const D: usize> {
     pub stress: &'a [Matrix<D>],
     /// Material groups.
     pub groups: &'a [GroupView],
+    /// Contact field of each particle (numbered as [`crate::scene::ContactSection::fields`]);
+    /// empty in a scene without a `contact` section.
+    pub contact_field: &'a [u8],
 }
 
 /// A problem that stops the run, reported by a physics operator.
@@ -266,7 +269,8 @@ pub struct PhysicsContext<'a, const D: usize> {
     /// Shared scalar particle fields.
     pub fields: &'a mut ParticleFields,
     /// This operator's grid scratch arrays, one per [`PhysicsLaw::grid_arrays`], each one
-    /// number per node; they keep their values between steps.
+    /// number per node; they keep their values between steps, and an operator that needs
+    /// more per node (one value per contact field) may grow them once.
     pub scratch: &'a mut [Vec<f64>],
     /// Faults and figures.
     pub report: &'a mut PhysicsReport,

@@ -3,6 +3,7 @@
 
 use crate::boundary::Face;
 use crate::factored::Factored;
+use crate::interface::{Coupling, Interfaces, apply_couplings};
 use crate::parameters::HeatPreconditioner;
 use crate::parameters::{Integrator, ThermalParameters};
 use mpm_core::linear_solvers::conjugate_gradient::{Work, solve, solve_preconditioned};
@@ -12,10 +13,14 @@ use mpm_core::physics::{
     PhysicsLaw, SharedFieldSpec, Stage,
 };
 use mpm_core::scene::Scene;
+use std::sync::Mutex;
 
 /// Grid scratch arrays: capacity, old and new nodal temperature, sources, convection,
 /// held values, conductance diagonal, and four conjugate-gradient vectors.
 const ARRAYS: usize = 11;
+/// More with contact conductance: each group's particle volume and volume gradient (up to
+/// three axes) per node.
+const INTERFACE_ARRAYS: usize = 4;
 /// Temperatures at or above this stop the run: the conduction has diverged.
 const MAX_TEMPERATURE: f64 = 1e5;
 
@@ -27,11 +32,15 @@ pub struct Thermal {
     expansion: bool,
     plastic_heating: bool,
     factored: Factored,
+    /// Thermal groups (one temperature per node and group) and their conductances.
+    interfaces: Interfaces,
+    /// The interface couplings of the step (reused).
+    couplings: Mutex<Vec<Coupling>>,
 }
 
 impl Thermal {
-    /// The operator for checked parameters.
-    pub fn new(params: ThermalParameters, scene: &Scene) -> Self {
+    /// The operator for checked parameters, with the thermal groups of `interfaces`.
+    pub(crate) fn new(params: ThermalParameters, scene: &Scene, interfaces: Interfaces) -> Self {
         let expansion = params.materials.values().any(|m| m.expansion != 0.0);
         let plastic_heating = params
             .materials
@@ -44,6 +53,8 @@ impl Thermal {
             expansion,
             plastic_heating,
             factored: Factored::default(),
+            interfaces,
+            couplings: Mutex::new(Vec::new()),
         }
     }
 
@@ -94,7 +105,8 @@ impl Thermal {
         }
     }
 
-    /// One conduction step.
+    /// One conduction step. With contact conductance every thermal group has its own row
+    /// of nodal unknowns (row = node + group × nodes) and the interfaces couple them.
     fn conduct<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
         let PhysicsContext {
             dt,
@@ -131,6 +143,16 @@ impl Thermal {
             &[]
         };
         let heat_release: &[f64] = heat_release.map_or(&[][..], |h| &*h);
+        let nodes = grid.len();
+        let groups = self.interfaces.groups;
+        let interface = groups > 1;
+        // One value per node and group: grown once, at the first step.
+        for a in scratch.iter_mut() {
+            if a.len() != nodes * groups {
+                a.resize(nodes * groups, 0.0);
+            }
+        }
+        let (main, extra) = scratch.split_at_mut(ARRAYS.min(scratch.len()));
         let [
             cap,
             t_old,
@@ -143,23 +165,41 @@ impl Thermal {
             z,
             p_dir,
             ap,
-        ] = scratch
+        ] = main
         else {
             return;
         };
+        let (volume_rows, gradient_rows): (&mut [f64], &mut [Vec<f64>]) =
+            match extra.split_first_mut() {
+                Some((v, g)) if interface && g.len() >= D => (v.as_mut_slice(), &mut g[..D]),
+                _ => (&mut [], &mut []),
+            };
         for a in [
             &mut *cap,
             &mut *t_old,
             &mut *source,
             &mut *convection,
             &mut *kdiag,
+            &mut *volume_rows,
         ] {
             a.fill(0.0);
         }
+        for g in gradient_rows.iter_mut() {
+            g.fill(0.0);
+        }
         fixed.fill(f64::NAN);
         let volume = |p: usize| determinant(&pv.deformation_gradient[p]) * pv.volume0[p];
+        let contact_field = pv.contact_field;
+        let offset = |p: usize| {
+            if interface {
+                nodes * self.interfaces.group(contact_field[p])
+            } else {
+                0
+            }
+        };
 
-        // P2G: heat capacity, thermal energy, heat sources, conductance diagonal.
+        // P2G: heat capacity, thermal energy, heat sources, conductance diagonal (and, with
+        // interfaces, each group's particle volume and volume gradient).
         for g in pv.groups {
             let Some(m) = self.params.materials.get(&g.name) else {
                 continue;
@@ -176,13 +216,20 @@ impl Thermal {
                     q += heat_release[p] * pv.volume0[p] / dt;
                 }
                 let kv = conductivity[p] * v;
+                let o = offset(p);
                 for e in it.entries(p) {
-                    let i = it.node[e] as usize;
+                    let i = it.node[e] as usize + o;
                     let w = it.weight[e];
                     cap[i] += w * mc;
                     t_old[i] += w * mc * temperature[p];
                     source[i] += w * q;
                     kdiag[i] += kv * it.gradient[e].norm_squared();
+                    if interface {
+                        volume_rows[i] += w * v;
+                        for (axis, row) in gradient_rows.iter_mut().enumerate() {
+                            row[i] += v * it.gradient[e][axis];
+                        }
+                    }
                 }
             }
         }
@@ -191,29 +238,54 @@ impl Thermal {
                 t_old[i] /= cap[i];
             }
         }
+        let mut couplings = self
+            .couplings
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        if interface {
+            self.interfaces.couplings::<D>(
+                nodes,
+                cap,
+                volume_rows,
+                gradient_rows,
+                grid.dx.powi(D as i32),
+                &mut couplings,
+            );
+        }
+        let couplings: &[Coupling] = &couplings;
 
-        // Wall conditions where the body touches the faces.
+        // Wall conditions where the body touches the faces; a face node shared by groups
+        // gives each its share of the face by heat capacity.
         let area = grid.dx.powi(D as i32 - 1);
+        let share = |row: usize| {
+            if !interface {
+                return 1.0;
+            }
+            let node = row % nodes;
+            let total: f64 = (0..groups).map(|g| cap[node + g * nodes]).sum();
+            cap[row] / total
+        };
         for b in &self.params.boundaries {
             for side in &b.sides {
                 let face = Face::new(*side, grid, &self.domain_min, &self.domain_max);
-                for i in 0..cap.len() {
-                    if cap[i] <= 0.0 {
+                for row in 0..cap.len() {
+                    if cap[row] <= 0.0 {
                         continue;
                     }
-                    let c = grid.coords(i)[face.axis];
+                    let c = grid.coords(row % nodes)[face.axis];
                     if let Some(t) = &b.temperature {
                         if face.on_or_behind(c) {
-                            fixed[i] = t.at(time);
+                            fixed[row] = t.at(time);
                         }
                     } else if face.on(c) {
+                        let part = share(row);
                         if let Some(q) = &b.heat_flux {
-                            source[i] += q.at(time) * area;
+                            source[row] += q.at(time) * area * part;
                         }
                         if let Some(conv) = &b.convection {
-                            let h = conv.coefficient * area;
-                            convection[i] += h;
-                            source[i] += h * conv.ambient.at(time);
+                            let h = conv.coefficient * area * part;
+                            convection[row] += h;
+                            source[row] += h * conv.ambient.at(time);
                         }
                     }
                 }
@@ -223,7 +295,16 @@ impl Thermal {
         let k_of = |p: usize| conductivity[p];
         match self.params.integrator {
             Integrator::Explicit => {
-                conductance(it, pv.deformation_gradient, pv.volume0, &k_of, t_old, ap);
+                conductance(
+                    it,
+                    pv.deformation_gradient,
+                    pv.volume0,
+                    &k_of,
+                    &offset,
+                    t_old,
+                    ap,
+                );
+                apply_couplings(couplings, t_old, ap);
                 for i in 0..cap.len() {
                     t_new[i] = if cap[i] <= 0.0 {
                         0.0
@@ -235,7 +316,11 @@ impl Thermal {
                 }
             }
             Integrator::Implicit => {
-                // (C + dt·(K + H)) T = C·T_old + dt·Q, fixed nodes held.
+                // (C + dt·(K + H_interface + H_convection)) T = C·T_old + dt·Q, fixed rows held.
+                for c in couplings {
+                    kdiag[c.a as usize] += c.conductance;
+                    kdiag[c.b as usize] += c.conductance;
+                }
                 for i in 0..cap.len() {
                     source[i] = cap[i] * t_old[i] + dt * source[i];
                     let free = cap[i] > 0.0 && !fixed[i].is_finite();
@@ -254,7 +339,16 @@ impl Thermal {
                 }
                 let (cap, convection) = (&*cap, &*convection);
                 let apply = |x: &[f64], y: &mut [f64]| {
-                    conductance(it, pv.deformation_gradient, pv.volume0, &k_of, x, y);
+                    conductance(
+                        it,
+                        pv.deformation_gradient,
+                        pv.volume0,
+                        &k_of,
+                        &offset,
+                        x,
+                        y,
+                    );
+                    apply_couplings(couplings, x, y);
                     for i in 0..x.len() {
                         y[i] = cap[i] * x[i] + dt * (y[i] + convection[i] * x[i]);
                     }
@@ -267,6 +361,8 @@ impl Thermal {
                         it,
                         pv.volume0.len(),
                         |p| conductivity[p] * volume(p),
+                        &offset,
+                        couplings,
                         cap,
                         convection,
                         kdiag,
@@ -308,9 +404,10 @@ impl Thermal {
         // and the first particle layer overshoots it early on (415 K against a 400 K face
         // at 0.02 s in the slab); clamping or interpolating there cost accuracy.
         for (p, t) in temperature.iter_mut().enumerate() {
+            let o = offset(p);
             let mut change = 0.0;
             for e in it.entries(p) {
-                let i = it.node[e] as usize;
+                let i = it.node[e] as usize + o;
                 change += it.weight[e] * (t_new[i] - t_old[i]);
             }
             *t += change;
@@ -332,24 +429,27 @@ impl Thermal {
 }
 
 /// `y = K x`: the conductance matrix `K_ij = Σ_p V_p k_p ∇w_ip·∇w_jp` applied matrix-free
-/// through the particles' temperature gradients.
+/// through the particles' temperature gradients; particle `p` reads and writes the rows
+/// `node + offset(p)` (its thermal group's).
 fn conductance<const D: usize>(
     it: &Interpolation<D>,
     deformation_gradient: &[Matrix<D>],
     volume0: &[f64],
     conductivity: &dyn Fn(usize) -> f64,
+    offset: &dyn Fn(usize) -> usize,
     x: &[f64],
     y: &mut [f64],
 ) {
     y.fill(0.0);
     for p in 0..volume0.len() {
+        let o = offset(p);
         let mut gradient = Vector::<D>::zeros();
         for e in it.entries(p) {
-            gradient += it.gradient[e] * x[it.node[e] as usize];
+            gradient += it.gradient[e] * x[it.node[e] as usize + o];
         }
         let s = conductivity(p) * determinant(&deformation_gradient[p]) * volume0[p];
         for e in it.entries(p) {
-            y[it.node[e] as usize] += s * it.gradient[e].dot(&gradient);
+            y[it.node[e] as usize + o] += s * it.gradient[e].dot(&gradient);
         }
     }
 }
@@ -386,7 +486,11 @@ impl PhysicsLaw for Thermal {
     }
 
     fn grid_arrays(&self) -> usize {
-        ARRAYS
+        if self.interfaces.groups > 1 {
+            ARRAYS + INTERFACE_ARRAYS
+        } else {
+            ARRAYS
+        }
     }
 
     fn stable_dt<const D: usize>(&self, ctx: PhysicsContext<'_, D>) -> f64 {

@@ -6,7 +6,10 @@
 //! the grid (Jacobi needed up to 157 per step on the underfill-cure section, where the
 //! diffusion length of a 30 s step is centimetres against a millimetre body). The sparsity
 //! pattern and its symbolic factorisation are kept while the particles stay in their cells.
+//! With contact conductance the unknowns are rows (node + group × nodes) and the
+//! interface couplings add their entries.
 
+use crate::interface::Coupling;
 use faer::sparse::Pair;
 use mpm_core::linear_solvers::sparse_cholesky::{PatternCache, SparseCholesky};
 use mpm_core::physics::Interpolation;
@@ -37,14 +40,17 @@ pub(crate) struct Factored {
 }
 
 impl FactoredState {
-    /// Assembles and factors A on the nodes with `inverse_diagonal > 0`; `conductance(p)` is
-    /// V_p k_p of particle `p`. `None` when the system is too large or not factorable.
+    /// Assembles and factors A on the rows with `inverse_diagonal > 0`; `conductance(p)` is
+    /// V_p k_p of particle `p`, whose rows are its nodes plus `offset(p)`; `couplings` are
+    /// the interfaces between groups. `None` when the system is too large or not factorable.
     #[allow(clippy::too_many_arguments)]
     pub fn factor<const D: usize>(
         &mut self,
         it: &Interpolation<D>,
         particles: usize,
         conductance: impl Fn(usize) -> f64,
+        offset: &dyn Fn(usize) -> usize,
+        couplings: &[Coupling],
         capacity: &[f64],
         convection: &[f64],
         inverse_diagonal: &[f64],
@@ -70,19 +76,35 @@ impl FactoredState {
         self.values.clear();
         for p in 0..particles {
             let s = dt * conductance(p);
+            let o = offset(p);
             for a in it.entries(p) {
-                let row = self.index[it.node[a] as usize];
+                let row = self.index[it.node[a] as usize + o];
                 if row == u32::MAX {
                     continue;
                 }
                 for b in it.entries(p) {
-                    let col = self.index[it.node[b] as usize];
+                    let col = self.index[it.node[b] as usize + o];
                     if col == u32::MAX || col > row {
                         continue;
                     }
                     self.pairs.push(Pair::new(row as usize, col as usize));
                     self.values.push(s * it.gradient[a].dot(&it.gradient[b]));
                 }
+            }
+        }
+        for c in couplings {
+            let (a, b) = (self.index[c.a as usize], self.index[c.b as usize]);
+            let h = dt * c.conductance;
+            for row in [a, b] {
+                if row != u32::MAX {
+                    self.pairs.push(Pair::new(row as usize, row as usize));
+                    self.values.push(h);
+                }
+            }
+            if a != u32::MAX && b != u32::MAX {
+                self.pairs
+                    .push(Pair::new(a.max(b) as usize, a.min(b) as usize));
+                self.values.push(-h);
             }
         }
         for (k, &node) in self.nodes.iter().enumerate() {

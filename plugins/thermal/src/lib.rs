@@ -8,16 +8,23 @@
 //! matrix-free conjugate gradients preconditioned by a sparse Cholesky of the step's
 //! matrix (`factored.rs`), stable at any step.
 //!
+//! Contact between bodies conducts perfectly unless `contact_conductance` gives a pair a
+//! heat transfer coefficient (`interface.rs`: one nodal temperature per thermal group).
+//!
 //! Scene section: `physics.thermal` ([`ThermalParameters`]).
 
 mod boundary;
 mod conduction;
 mod factored;
+mod interface;
+mod interface_reference;
 mod parameters;
 mod reference;
 
 pub use boundary::{Convection, ThermalBoundary};
 pub use conduction::Thermal;
+pub use interface::ContactConductance;
+pub use interface_reference::{InterfaceTemperatureParams, convecting_slab};
 pub use parameters::{HeatPreconditioner, Integrator, ThermalMaterial, ThermalParameters};
 pub use reference::{semi_infinite_temperature, slab_temperature};
 
@@ -57,9 +64,20 @@ fn build(
     path: &str,
     scene: &Scene,
 ) -> Result<Arc<dyn Physics>, Vec<Issue>> {
-    let issues = params.check(path, scene);
-    if !issues.is_empty() {
-        return Err(issues);
+    let mut issues = params.check(path, scene);
+    let interfaces = interface::Interfaces::new(
+        &params.contact_conductance,
+        &format!("{path}.contact_conductance"),
+        scene,
+    );
+    match interfaces {
+        Ok(interfaces) if issues.is_empty() => {
+            Ok(Arc::new(Thermal::new(params, scene, interfaces)))
+        }
+        Ok(_) => Err(issues),
+        Err(more) => {
+            issues.extend(more);
+            Err(issues)
+        }
     }
-    Ok(Arc::new(Thermal::new(params, scene)))
 }

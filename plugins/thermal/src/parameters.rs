@@ -1,6 +1,7 @@
 //! The `physics.thermal` scene section and its checks.
 
 use crate::boundary::ThermalBoundary;
+use crate::interface::ContactConductance;
 use mpm_core::physics::Property;
 use mpm_core::scene::{Issue, Scene};
 use schemars::JsonSchema;
@@ -29,6 +30,11 @@ pub struct ThermalParameters {
     /// Implicit solve: preconditioner of the conjugate gradients.
     #[serde(default)]
     pub preconditioner: HeatPreconditioner,
+    /// Imperfect thermal interfaces between contact bodies (`contact.pairs`), each with a
+    /// heat transfer coefficient; contact without one conducts perfectly. Implicit
+    /// integrator only.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub contact_conductance: Vec<ContactConductance>,
 }
 
 /// The preconditioner of the implicit heat solve.
@@ -167,6 +173,12 @@ impl ThermalParameters {
             issues.push(Issue::new(
                 format!("{path}.tolerance"),
                 format!("must lie in (0, 1) (got {})", self.tolerance),
+            ));
+        }
+        if !self.contact_conductance.is_empty() && self.integrator == Integrator::Explicit {
+            issues.push(Issue::new(
+                format!("{path}.integrator"),
+                "contact conductance needs the implicit integrator (a thermal group's capacity at the edge of its kernel's reach is tiny, so the explicit step has no useful bound)",
             ));
         }
         if self.max_iterations == 0 {

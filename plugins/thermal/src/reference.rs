@@ -1,6 +1,8 @@
 //! The heat-conduction references: a slab whose faces are stepped in temperature (Fourier
-//! series) and a semi-infinite body whose surface is (erf solution), with their closed forms.
+//! series), a semi-infinite body whose surface is (erf solution), with their closed forms,
+//! and two slabs joined by a contact conductance (`interface_reference.rs`).
 
+use crate::interface_reference::InterfaceTemperatureParams;
 use mpm_core::math::{Vector, erf};
 use mpm_core::reference::{
     Frame, Reference, ReferenceFactory, ReferenceLaw, RelativeL2, TypedReferenceFactory,
@@ -55,6 +57,7 @@ pub struct SemiInfiniteTemperatureParams {
 enum Geometry {
     Slab(SlabTemperatureParams),
     SemiInfinite(SemiInfiniteTemperatureParams),
+    Interface(InterfaceTemperatureParams),
 }
 
 /// Squared temperature errors over particles and frames, each relative to the step.
@@ -89,6 +92,10 @@ impl TemperatureError {
                 ),
                 p.initial_temperature - p.surface_temperature,
             ),
+            Geometry::Interface(p) => (
+                p.temperature(x[p.axis], t),
+                p.lower_temperature - p.upper_temperature,
+            ),
         }
     }
 }
@@ -101,6 +108,9 @@ impl ReferenceLaw for TemperatureError {
             }
             Geometry::SemiInfinite(_) => {
                 "RMS temperature error over particles and frames / temperature step (semi-infinite body, erf solution)"
+            }
+            Geometry::Interface(_) => {
+                "RMS temperature error over particles and frames / temperature difference (two slabs joined by a contact conductance, series solution)"
             }
         }
     }
@@ -162,9 +172,38 @@ fn build_semi_infinite(
     }))
 }
 
-/// The `slab_temperature` and `semi_infinite_temperature` reference types.
+fn build_interface(
+    p: InterfaceTemperatureParams,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Reference>, Vec<Issue>> {
+    let mut c = Checks::new(path);
+    c.axis("axis", p.axis, scene.dimension as usize);
+    c.finite("interface", p.interface);
+    c.positive("thickness", p.thickness);
+    c.positive("lower_temperature", p.lower_temperature);
+    c.positive("upper_temperature", p.upper_temperature);
+    c.positive("conductivity", p.conductivity);
+    c.positive("diffusivity", p.diffusivity);
+    c.positive("coefficient", p.coefficient);
+    if p.lower_temperature == p.upper_temperature {
+        c.error("upper_temperature", "must differ from lower_temperature");
+    }
+    c.finish()?;
+    Ok(Arc::new(TemperatureError {
+        geometry: Geometry::Interface(p),
+        error: RelativeL2::default(),
+    }))
+}
+
+/// The `slab_temperature`, `semi_infinite_temperature` and `interface_temperature`
+/// reference types.
 pub fn factories() -> Vec<Box<dyn ReferenceFactory>> {
     vec![
+        Box::new(TypedReferenceFactory::new(
+            "interface_temperature",
+            build_interface,
+        )),
         Box::new(TypedReferenceFactory::new("slab_temperature", build_slab)),
         Box::new(TypedReferenceFactory::new(
             "semi_infinite_temperature",

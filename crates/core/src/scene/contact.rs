@@ -129,6 +129,30 @@ impl CohesiveLaw {
 }
 
 impl ContactSection {
+    /// The contact fields of `scene`: the key of each field (a body name, or `None` for the
+    /// field of the bodies no pair names) in the solver's order, and the field of every body
+    /// (by body index). Bodies named in pairs get one field per distinct name; fields past
+    /// [`MAX_CONTACT_FIELDS`] (refused at validation) fold into the last.
+    pub fn fields<'a>(&self, scene: &'a Scene) -> (Vec<Option<&'a str>>, Vec<u8>) {
+        let named = |name: &str| {
+            self.pairs
+                .iter()
+                .any(|p| p.bodies.iter().any(|b| b == name))
+        };
+        let mut keys: Vec<Option<&str>> = Vec::new();
+        let mut of_body = Vec::with_capacity(scene.bodies.len());
+        for body in &scene.bodies {
+            let key = (!body.name.is_empty() && named(&body.name)).then_some(body.name.as_str());
+            let field = keys.iter().position(|k| *k == key).unwrap_or_else(|| {
+                keys.push(key);
+                keys.len() - 1
+            });
+            of_body.push(field.min(MAX_CONTACT_FIELDS - 1) as u8);
+        }
+        keys.truncate(MAX_CONTACT_FIELDS);
+        (keys, of_body)
+    }
+
     /// Whether any pair is a bonded interface (`cohesive` law).
     pub fn has_cohesive(&self) -> bool {
         self.pairs

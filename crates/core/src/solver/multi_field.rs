@@ -43,23 +43,8 @@ pub(crate) struct MultiField<const D: usize> {
 /// one field; bodies named in pairs get one field per distinct name.
 pub(crate) fn body_fields(scene: &Scene) -> Option<(Vec<u8>, usize, FieldLaws)> {
     let contact = scene.contact.as_ref()?;
-    let named = |name: &str| {
-        contact
-            .pairs
-            .iter()
-            .any(|p| p.bodies.iter().any(|b| b == name))
-    };
-    let mut keys: Vec<Option<&str>> = Vec::new();
-    let mut fields = Vec::with_capacity(scene.bodies.len());
-    for body in &scene.bodies {
-        let key = (!body.name.is_empty() && named(&body.name)).then_some(body.name.as_str());
-        let field = keys.iter().position(|k| *k == key).unwrap_or_else(|| {
-            keys.push(key);
-            keys.len() - 1
-        });
-        fields.push(field.min(MAX_CONTACT_FIELDS - 1) as u8);
-    }
-    let count = keys.len().min(MAX_CONTACT_FIELDS);
+    let (keys, fields) = contact.fields(scene);
+    let count = keys.len();
     let mut laws = FieldLaws::bonded(count);
     let field_of = |name: &str| keys.iter().position(|k| *k == Some(name));
     for pair in &contact.pairs {

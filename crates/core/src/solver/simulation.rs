@@ -171,6 +171,7 @@ where
             deformation_gradient,
             stress,
             shared,
+            contact_field,
             ..
         } = &mut self.particles;
         for slot in &mut self.physics {
@@ -186,6 +187,7 @@ where
                     deformation_gradient,
                     stress,
                     groups: &self.group_views,
+                    contact_field,
                 },
                 fields: shared,
                 scratch: &mut slot.scratch,
