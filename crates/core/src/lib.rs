@@ -20,6 +20,7 @@ pub mod reference;
 pub mod scene;
 pub mod section;
 pub mod solver;
+pub mod stress_measures;
 
 /// Version of this crate, stored with every result.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -94,6 +94,11 @@ pub struct StageSummary {
     /// 2D from the stored in-plane stress with σ_zz = 0).
     #[serde(default)]
     pub peak_von_mises: std::collections::BTreeMap<String, f64>,
+    /// With `output.stress_averaging_radius`: the largest von Mises stress averaged over
+    /// each material's particles within that radius of a particle, Pa (converges where the
+    /// peak does not; `stress_measures.rs`).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub averaged_von_mises: std::collections::BTreeMap<String, f64>,
 }
 
 /// One output frame. `values[i]` holds field `i` for every particle in output order,

@@ -101,30 +101,4 @@ impl<const D: usize> Particles<D> {
             self.bytes() as f64 / self.len() as f64
         }
     }
-
-    /// Largest von Mises stress of each material group's particles, Pa: in 3D from the
-    /// full stress, in 2D from the stored in-plane stress with σ_zz = 0 (the plane-stress
-    /// formula; a plane-strain σ_zz is not stored).
-    pub fn peak_von_mises(&self) -> std::collections::BTreeMap<String, f64> {
-        let mut out = std::collections::BTreeMap::new();
-        for group in &self.groups {
-            let peak = self.stress[group.range.clone()]
-                .iter()
-                .map(von_mises::<D>)
-                .fold(0.0, f64::max);
-            let entry = out.entry(group.name.clone()).or_insert(0.0f64);
-            *entry = entry.max(peak);
-        }
-        out
-    }
-}
-
-/// Von Mises stress of a stress tensor (missing components zero).
-fn von_mises<const D: usize>(s: &Matrix<D>) -> f64 {
-    let c = |i: usize, j: usize| if i < D && j < D { s[(i, j)] } else { 0.0 };
-    let (xx, yy, zz) = (c(0, 0), c(1, 1), c(2, 2));
-    let (xy, yz, zx) = (c(0, 1), c(1, 2), c(2, 0));
-    (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2))
-        + 3.0 * (xy * xy + yz * yz + zx * zx))
-        .sqrt()
 }

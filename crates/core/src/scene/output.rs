@@ -5,6 +5,9 @@ use super::validator::Validator;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+/// Largest stress averaging radius, in cells.
+const MAX_AVERAGING_CELLS: f64 = 20.0;
+
 /// Output schedule and fields.
 #[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -20,6 +23,12 @@ pub struct Output {
     /// (only the last one is kept in the store).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointSchedule>,
+    /// Radius, m, of the stress average each stage's summary reports besides the peak
+    /// (`averaged_von_mises`): the largest von Mises stress averaged over the particles of
+    /// one material within this distance of a particle. Unlike the peak it converges under
+    /// refinement at a singular corner.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stress_averaging_radius: Option<f64>,
 }
 
 /// When a run writes a checkpoint: every `steps` steps, or every `time` seconds of
@@ -48,6 +57,7 @@ impl Default for Output {
             frames: default_frames(),
             fields: default_fields(),
             checkpoint: None,
+            stress_averaging_radius: None,
         }
     }
 }
@@ -86,8 +96,8 @@ impl Default for StopCriteria {
 }
 
 impl Output {
-    /// Checks the output schedule.
-    pub(super) fn validate(&self, v: &mut Validator) {
+    /// Checks the output schedule (`cell_size` bounds the stress averaging radius).
+    pub(super) fn validate(&self, v: &mut Validator, cell_size: f64) {
         if self.frames == 0 {
             v.err("output.frames", "must be at least 1");
         }
@@ -102,6 +112,17 @@ impl Output {
             }
             if let Some(t) = c.time {
                 v.positive("output.checkpoint.time", t);
+            }
+        }
+        if let Some(r) = self.stress_averaging_radius {
+            v.positive("output.stress_averaging_radius", r);
+            if r > MAX_AVERAGING_CELLS * cell_size {
+                v.err(
+                    "output.stress_averaging_radius",
+                    format!(
+                        "must be at most {MAX_AVERAGING_CELLS} cells (domain.cell_size {cell_size} m; got {r} m): the average's cost grows with its area"
+                    ),
+                );
             }
         }
     }

@@ -200,7 +200,7 @@ impl Validator {
         if let Some(contact) = &s.contact {
             contact.validate(self, s);
         }
-        s.output.validate(self);
+        s.output.validate(self, s.domain.cell_size);
         s.stop.validate(self);
     }
 

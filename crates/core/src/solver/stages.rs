@@ -12,6 +12,7 @@ use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{Metrics, Outcome, OutputSink, StageInfo, StageSummary};
 use crate::scene::ValidatedScene;
+use crate::stress_measures::{averaged_peak_von_mises, peak_von_mises};
 use std::collections::BTreeMap;
 
 /// Runs every stage of `scene` in order into `sink` (from `resume`, a checkpoint written
@@ -30,9 +31,10 @@ pub(super) fn run_stages(
         handed_over: Option<&'a Checkpoint>,
         resume: bool,
         tag: serde_json::Value,
+        averaging_radius: Option<f64>,
     }
     impl SimulationVisitor for Stage<'_> {
-        type Output = Result<(Metrics, Checkpoint, BTreeMap<String, f64>), RunError>;
+        type Output = Result<(Metrics, Checkpoint, StressFigures), RunError>;
         fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
         where
             dyn Material: DimensionDispatch<D>,
@@ -40,7 +42,14 @@ pub(super) fn run_stages(
             sim.stage_tag = self.tag;
             let (metrics, end) =
                 sim.run_stage(self.sink, self.observer, self.handed_over, self.resume)?;
-            Ok((metrics, end, sim.particles.peak_von_mises()))
+            let figures = StressFigures {
+                peak: peak_von_mises(&sim.particles),
+                averaged: self
+                    .averaging_radius
+                    .map(|r| averaged_peak_von_mises(&sim.particles, r))
+                    .unwrap_or_default(),
+            };
+            Ok((metrics, end, figures))
         }
     }
     let (first, mut summaries) = match resume {
@@ -100,7 +109,7 @@ pub(super) fn run_stages(
             filtered = hand_over::without_particles(&stage.scene, &removed);
             &filtered
         };
-        let (metrics, end, peak_von_mises) = dispatch(
+        let (metrics, end, stress) = dispatch(
             stage_scene,
             Stage {
                 sink: &mut *sink,
@@ -108,6 +117,7 @@ pub(super) fn run_stages(
                 handed_over: handed_over.as_ref(),
                 resume: resumed_here,
                 tag,
+                averaging_radius: stage_scene.scene.output.stress_averaging_radius,
             },
         )?;
         summaries.push(StageSummary {
@@ -122,7 +132,8 @@ pub(super) fn run_stages(
             particles: metrics.particles,
             removed_particles: removed_here,
             physics: metrics.physics.clone(),
-            peak_von_mises,
+            peak_von_mises: stress.peak,
+            averaged_von_mises: stress.averaged,
         });
         steps_before = metrics.steps;
         let finished = metrics.outcome == Some(Outcome::Finished);
@@ -142,6 +153,12 @@ pub(super) fn run_stages(
     last.stages = summaries;
     sink.finish_stages(&last)?;
     Ok(last)
+}
+
+/// The stress figures of a stage's end, per material (`stress_measures`).
+struct StressFigures {
+    peak: BTreeMap<String, f64>,
+    averaged: BTreeMap<String, f64>,
 }
 
 /// The stage a checkpoint of a staged run was written in, and the summaries of the stages
