@@ -135,6 +135,43 @@ fn solve_small<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<
     Some(x)
 }
 
+/// The curvature of a strip along `ax` bending across `at`: −2 q of the least-squares fit
+/// u_t = a + b s + c s² + q x² (+ r z² in 3D: a plate bends both ways) of the particles'
+/// deflection, over those within `limit` of `center` (x = |x₀ − center|, s = x₀ across).
+pub(super) fn fit_curvature<const D: usize>(
+    particles: &crate::particles::Particles<D>,
+    ax: usize,
+    at: usize,
+    center: f64,
+    limit: f64,
+) -> Option<f64> {
+    const N: usize = 5;
+    let mut ata = [[0.0; N]; N];
+    let mut atb = [0.0; N];
+    let third = (0..D).find(|&d| d != ax && d != at);
+    for i in 0..particles.len() {
+        let x0 = particles.initial_position[i];
+        let x = (x0[ax] - center).abs();
+        let z = third.map_or(0.0, |d| x0[d] - center);
+        if x > limit || z.abs() > limit {
+            continue;
+        }
+        let s = x0[at];
+        let u = particles.position[i][at] - x0[at];
+        let row = [1.0, s, s * s, x * x, z * z];
+        for r in 0..N {
+            for c in 0..N {
+                ata[r][c] += row[r] * row[c];
+            }
+            atb[r] += row[r] * u;
+        }
+    }
+    if third.is_none() {
+        ata[4][4] = 1.0;
+    }
+    solve_small(ata, atb).map(|c| -2.0 * c[3])
+}
+
 impl ReferenceLaw for BimaterialStrip {
     fn kind(&self) -> &'static str {
         "relative error of the curvature of a bimaterial strip under a uniform temperature change (Timoshenko 1925)"
@@ -149,36 +186,13 @@ impl ReferenceLaw for BimaterialStrip {
             return;
         }
         let p = &self.p;
-        let particles = frame.particles;
-        let (ax, at) = (p.length_axis, p.thickness_axis);
-        let limit = p.fit_fraction * p.half_length;
-        // Fit u_t = a + b s + c s² + q x² (+ the same in the third axis in 3D, with its own
-        // x²: a plate bends in both directions).
-        const N: usize = 5;
-        let mut ata = [[0.0; N]; N];
-        let mut atb = [0.0; N];
-        let third = (0..D).find(|&d| d != ax && d != at);
-        for i in 0..particles.len() {
-            let x0 = particles.initial_position[i];
-            let x = (x0[ax] - p.center).abs();
-            let z = third.map_or(0.0, |d| x0[d] - p.center);
-            if x > limit || z.abs() > limit {
-                continue;
-            }
-            let s = x0[at];
-            let u = particles.position[i][at] - x0[at];
-            let row = [1.0, s, s * s, x * x, z * z];
-            for r in 0..N {
-                for c in 0..N {
-                    ata[r][c] += row[r] * row[c];
-                }
-                atb[r] += row[r] * u;
-            }
-        }
-        if third.is_none() {
-            ata[4][4] = 1.0;
-        }
-        self.measured = solve_small(ata, atb).map(|c| -2.0 * c[3]);
+        self.measured = fit_curvature(
+            frame.particles,
+            p.length_axis,
+            p.thickness_axis,
+            p.center,
+            p.fit_fraction * p.half_length,
+        );
     }
 
     fn error(&self) -> Option<f64> {

@@ -10,12 +10,14 @@
 mod bimaterial_strip;
 mod cantilever_elastica;
 mod kirsch_plate;
+mod layered_strip;
 mod poiseuille_startup;
 mod vibrating_bar;
 
 pub use bimaterial_strip::bimaterial_curvature;
 pub use cantilever_elastica::heavy_elastica_tip_deflection;
 pub use kirsch_plate::kirsch_stress_along_load;
+pub use layered_strip::{Layer, LayeredStripParams, layered_strip_solution};
 pub use poiseuille_startup::{poiseuille_startup_profile, poiseuille_startup_velocity};
 
 use crate::output::Comparison;
@@ -191,6 +193,7 @@ pub fn core_references() -> Vec<Box<dyn ReferenceFactory>> {
         vibrating_bar::factory(),
         cantilever_elastica::factory(),
         bimaterial_strip::factory(),
+        layered_strip::factory(),
         kirsch_plate::factory(),
         poiseuille_startup::factory(),
     ]
@@ -327,11 +330,12 @@ mod tests {
                 "bimaterial_strip",
                 "cantilever_elastica",
                 "kirsch_plate",
+                "layered_strip",
                 "poiseuille_startup",
                 "vibrating_bar"
             ]
         );
-        assert_eq!(registry.references_of(CORE).len(), 5);
+        assert_eq!(registry.references_of(CORE).len(), 6);
         let catalogue = registry.catalogue();
         assert!(catalogue["core"]["references"]["vibrating_bar"]["properties"]["axis"].is_object());
         match registry.register(Box::new(Clash)) {
