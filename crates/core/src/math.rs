@@ -190,6 +190,22 @@ pub fn erf(x: f64) -> f64 {
     1.0 - erfc(x)
 }
 
+/// The point in `[lo, hi]` where `below_root` turns from true to false, by 200 halvings of
+/// the bracket (to round-off); the references' closed forms solve their equations with it.
+/// The caller says which side of the root a point is on, so a closed form that loses
+/// precision or overflows at one end of the bracket does not mislead it.
+pub fn bisect(below_root: impl Fn(f64) -> bool, mut lo: f64, mut hi: f64) -> f64 {
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if below_root(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

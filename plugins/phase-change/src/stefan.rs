@@ -1,7 +1,7 @@
 //! The Stefan problem: a solid melts from a heated surface; Neumann's similarity solution
 //! puts the front at 2λ√(α_l t). The reference and its closed form.
 
-use mpm_core::math::{erf, erfc};
+use mpm_core::math::{bisect, erf, erfc};
 use mpm_core::reference::{
     Frame, Reference, ReferenceFactory, ReferenceLaw, RelativeL2, TypedReferenceFactory,
 };
@@ -168,16 +168,7 @@ pub fn neumann_lambda(stefan_liquid: f64, stefan_solid: f64, ratio: f64) -> f64 
             - stefan_solid * (-(ratio * l).powi(2)).exp() / (ratio * erfc(ratio * l))
             - l * PI.sqrt()
     };
-    let (mut lo, mut hi) = (1e-9, 10.0);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if residual(mid) > 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
+    bisect(|l| residual(l) > 0.0, 1e-9, 10.0)
 }
 
 #[cfg(test)]

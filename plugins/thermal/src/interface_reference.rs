@@ -6,6 +6,7 @@
 //! θ/θ₀ = Σ Cₙ cos(λₙ ξ) exp(−λₙ² α t / L²), Cₙ = 4 sin λₙ / (2λₙ + sin 2λₙ),
 //! λₙ tan λₙ = Bi = 2hL/k, with ξ the distance from the insulated face over L.
 
+use mpm_core::math::bisect;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -77,18 +78,13 @@ pub fn convecting_slab(xi: f64, fo: f64, biot: f64) -> f64 {
 
 /// The root of λ tan λ = Bi in (nπ, nπ + π/2), by bisection.
 fn eigenvalue(n: usize, biot: f64) -> f64 {
-    let f = |l: f64| l * l.sin() - biot * l.cos();
-    let (mut lo, mut hi) = (n as f64 * PI, n as f64 * PI + 0.5 * PI);
-    let below = f(lo) < 0.0;
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if (f(mid) < 0.0) == below {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
+    // At nπ the function is −Bi cos nπ: negative below the root for even n.
+    let even = n.is_multiple_of(2);
+    bisect(
+        |l: f64| (l * l.sin() - biot * l.cos() < 0.0) == even,
+        n as f64 * PI,
+        n as f64 * PI + 0.5 * PI,
+    )
 }
 
 #[cfg(test)]

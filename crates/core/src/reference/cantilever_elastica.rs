@@ -139,16 +139,12 @@ pub fn heavy_elastica_tip_deflection(alpha: f64) -> f64 {
         }
         (om, defl)
     };
-    let (mut lo, mut hi) = (0.0, alpha.max(1e-300));
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if integrate(mid).0 < 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    integrate(0.5 * (lo + hi)).1
+    integrate(crate::math::bisect(
+        |x| integrate(x).0 < 0.0,
+        0.0,
+        alpha.max(1e-300),
+    ))
+    .1
 }
 
 #[cfg(test)]
