@@ -293,18 +293,22 @@ impl Thermal {
         }
 
         let k_of = |p: usize| conductivity[p];
+        // y = (K + H_interface) x: conduction within each group, and the interfaces.
+        let conduct_and_couple = |x: &[f64], y: &mut [f64]| {
+            conductance(
+                it,
+                pv.deformation_gradient,
+                pv.volume0,
+                &k_of,
+                &offset,
+                x,
+                y,
+            );
+            apply_couplings(couplings, x, y);
+        };
         match self.params.integrator {
             Integrator::Explicit => {
-                conductance(
-                    it,
-                    pv.deformation_gradient,
-                    pv.volume0,
-                    &k_of,
-                    &offset,
-                    t_old,
-                    ap,
-                );
-                apply_couplings(couplings, t_old, ap);
+                conduct_and_couple(t_old, ap);
                 for i in 0..cap.len() {
                     t_new[i] = if cap[i] <= 0.0 {
                         0.0
@@ -339,16 +343,7 @@ impl Thermal {
                 }
                 let (cap, convection) = (&*cap, &*convection);
                 let apply = |x: &[f64], y: &mut [f64]| {
-                    conductance(
-                        it,
-                        pv.deformation_gradient,
-                        pv.volume0,
-                        &k_of,
-                        &offset,
-                        x,
-                        y,
-                    );
-                    apply_couplings(couplings, x, y);
+                    conduct_and_couple(x, y);
                     for i in 0..x.len() {
                         y[i] = cap[i] * x[i] + dt * (y[i] + convection[i] * x[i]);
                     }
