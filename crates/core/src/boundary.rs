@@ -116,6 +116,21 @@ pub struct WallPlane {
     pub contact_angle: f64,
 }
 
+/// A grid node near an obstacle's surface, inside it or in front of it (for the
+/// surface-tension colour's image).
+#[derive(Clone, Copy, Debug)]
+pub struct SolidImage<const D: usize> {
+    /// Node index.
+    pub node: usize,
+    /// Distance behind the surface, in cells (negative in front of it).
+    pub depth: f64,
+    /// The surface's unit normal, pointing out of the solid.
+    pub normal: Vector<D>,
+    /// Static contact angle of a liquid on the obstacle, radians, measured through the
+    /// liquid.
+    pub contact_angle: f64,
+}
+
 /// The (ghost, front) node indices along a wall's axis, nearest the surface first: the
 /// node `k` behind the wall plane `surface` and its mirror `k` in front, for as long as
 /// both lie among the axis's `n` nodes.
@@ -227,6 +242,8 @@ struct ObstacleRule<const D: usize> {
     solid: Solid<D>,
     contact: Contact,
     velocity: Vector<D>,
+    /// Static contact angle of a liquid on the obstacle, radians (90° without one).
+    contact_angle: f64,
 }
 
 /// Every boundary condition of a scene, ready to apply to grid nodes.
@@ -301,6 +318,7 @@ impl<const D: usize> Boundaries<D> {
                         .as_deref()
                         .map(vec_of)
                         .unwrap_or_else(Vector::<D>::zeros),
+                    contact_angle: o.contact_angle.unwrap_or(90.0).to_radians(),
                 }
             })
             .collect();
@@ -324,6 +342,40 @@ impl<const D: usize> Boundaries<D> {
             .obstacles
             .iter()
             .any(|o| o.solid.distance_and_normal(centre).0 < 0.0)
+    }
+
+    /// The grid nodes inside obstacles (at their place at time 0) within `reach` cells of
+    /// the surface, and those in front of it within `front` cells, each with its depth, the
+    /// nearest obstacle's normal and its contact angle (for the surface-tension colour).
+    pub fn solid_images(
+        &self,
+        grid: &crate::grid::Grid<D>,
+        reach: f64,
+        front: f64,
+    ) -> Vec<SolidImage<D>> {
+        let mut images = Vec::new();
+        for node in 0..grid.len() {
+            let x = grid.position(crate::grid::node_coords(&grid.stride, node));
+            let nearest = self
+                .obstacles
+                .iter()
+                .map(|o| (o.solid.distance_and_normal(&x), o.contact_angle))
+                .min_by(|a, b| a.0.0.total_cmp(&b.0.0));
+            if let Some(((distance, normal), contact_angle)) = nearest
+                && -distance <= reach * grid.dx
+                && distance <= front * grid.dx
+            {
+                // A node on the surface up to round-off is on it.
+                let depth = -distance * grid.inv_dx;
+                images.push(SolidImage {
+                    node,
+                    depth: if depth.abs() < 1e-6 { 0.0 } else { depth },
+                    normal,
+                    contact_angle,
+                });
+            }
+        }
+        images
     }
 
     /// Every wall's node plane.

@@ -13,7 +13,10 @@ use std::sync::Arc;
 /// Capillary filling of a parallel-plate gap from a reservoir (Washburn/Lucas law): the
 /// front is `x = √(h σ cosθ t / (3μ))` from the entrance, held at `length` once the gap
 /// is full (fill time `3μL²/(hσ cosθ)`). The measured front is `length × (liquid volume /
-/// gap volume)` from the shared particle field `fill` of the particles in the gap; error:
+/// gap volume)` from the shared particle field `fill` of the particles in the gap (the
+/// gap-averaged mode), or, for liquid particles (no `fill` field), the volume of the
+/// particles past the entrance over the gap's cross-section (`gap` times the domain's
+/// extent along the axes other than `axis` and `across`, capped at `length`); error:
 /// relative L2 error of the front over the output frames after t = 0. The comparison
 /// `fill_time` appears once the front reached the end.
 #[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
@@ -33,6 +36,10 @@ pub struct CapillaryFillingParams {
     pub contact_angle: f64,
     /// Dynamic viscosity of the liquid, Pa s.
     pub viscosity: f64,
+    /// Axis across the gap, normal to the plates (liquid particles in 3D: the gap's
+    /// cross-section spans the other one); default: the first axis other than `axis`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub across: Option<usize>,
     /// Materials whose particles make up the gap (empty: every particle), when the scene
     /// has other bodies too (the die and substrate of a package's cross-section).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -43,6 +50,10 @@ pub struct CapillaryFillingParams {
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct CapillaryFilling {
     p: CapillaryFillingParams,
+    /// For liquid particles: the gap's extent along the axes other than `axis` and
+    /// `across` (1 in 2D), m.
+    #[serde(default = "unit_depth")]
+    depth: f64,
     error: RelativeL2,
     measured: Option<f64>,
     expected: Option<f64>,
@@ -59,9 +70,7 @@ impl ReferenceLaw for CapillaryFilling {
 
     fn observe<const D: usize>(&mut self, frame: Frame<'_, D>) {
         let particles = frame.particles;
-        let Some(fill) = particles.shared.get("fill") else {
-            return;
-        };
+        let fill = particles.shared.get("fill");
         let CapillaryFillingParams {
             length,
             gap,
@@ -72,12 +81,17 @@ impl ReferenceLaw for CapillaryFilling {
         } = self.p;
         let materials = &self.p.materials;
         let (mut liquid, mut total) = (0.0, 0.0);
-        let mut add = |k: usize| {
-            liquid += fill[k] * particles.volume0[k];
-            total += particles.volume0[k];
+        let (axis, entrance) = (self.p.axis, self.p.entrance);
+        let mut add = |k: usize| match fill {
+            Some(fill) => {
+                liquid += fill[k] * particles.volume0[k];
+                total += particles.volume0[k];
+            }
+            None if particles.position[k][axis] > entrance => liquid += particles.volume0[k],
+            None => {}
         };
         if materials.is_empty() {
-            (0..fill.len()).for_each(&mut add);
+            (0..particles.len()).for_each(&mut add);
         } else {
             for group in &particles.groups {
                 if materials.contains(&group.name) {
@@ -85,7 +99,11 @@ impl ReferenceLaw for CapillaryFilling {
                 }
             }
         }
-        let front = length * liquid / total.max(1e-300);
+        let front = if fill.is_some() {
+            length * liquid / total.max(1e-300)
+        } else {
+            (liquid / (gap * self.depth)).min(length)
+        };
         let t_fill = capillary_fill_time(length, gap, surface_tension, contact_angle, viscosity);
         self.observe_front(frame.time, front, length, t_fill);
         if frame.time <= 0.0 {
@@ -167,6 +185,12 @@ impl CapillaryFilling {
 fn check(p: &CapillaryFillingParams, path: &str, scene: &Scene) -> Result<(), Vec<Issue>> {
     let mut c = Checks::new(path);
     c.axis("axis", p.axis, scene.dimension as usize);
+    if let Some(across) = p.across {
+        c.axis("across", across, scene.dimension as usize);
+        if across == p.axis {
+            c.error("across", "must differ from `axis`");
+        }
+    }
     for (i, m) in p.materials.iter().enumerate() {
         if !scene.materials.contains_key(m) {
             c.error(
@@ -198,14 +222,24 @@ fn build(
     scene: &Scene,
 ) -> Result<Arc<dyn Reference>, Vec<Issue>> {
     check(&p, path, scene)?;
+    let across = p.across.unwrap_or(if p.axis == 0 { 1 } else { 0 });
+    let depth = (0..scene.dimension as usize)
+        .filter(|&d| d != p.axis && d != across)
+        .map(|d| scene.domain.max[d] - scene.domain.min[d])
+        .product();
     Ok(Arc::new(CapillaryFilling {
         p,
+        depth,
         error: RelativeL2::default(),
         measured: None,
         expected: None,
         fronts: Vec::new(),
         comparisons: Vec::new(),
     }))
+}
+
+fn unit_depth() -> f64 {
+    1.0
 }
 
 /// The `capillary_filling` reference type.
@@ -312,6 +346,7 @@ mod tests {
             surface_tension: 0.03,
             contact_angle: f64::NAN,
             viscosity: 2.0,
+            across: None,
             materials: Vec::new(),
         };
         let found = check(&typed, "reference", &test_scene(2)).unwrap_err();

@@ -24,6 +24,7 @@
 mod banded;
 mod capillary_filling;
 mod capillary_references;
+mod capillary_rise_reference;
 mod cross_section;
 mod front;
 mod hele_shaw;
@@ -76,6 +77,7 @@ impl Plugin for UnderfillPlugin {
         references.extend(liquid_references::factories());
         references.extend(capillary_references::factories());
         references.extend(meniscus_reference::factories());
+        references.extend(capillary_rise_reference::factories());
         references
     }
 }

@@ -20,6 +20,11 @@ pub struct Obstacle {
     /// Velocity of the obstacle (one number per dimension); zero when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity: Option<Vec<f64>>,
+    /// Static contact angle, degrees, of a liquid with surface tension on the obstacle,
+    /// measured through the liquid (below 90 the liquid wets it and climbs it). Without it
+    /// the liquid meets the obstacle at 90°.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_angle: Option<f64>,
 }
 
 /// Geometry of a rigid obstacle.
@@ -99,5 +104,10 @@ impl Obstacle {
         if let Some(velocity) = &self.velocity {
             v.vector(&format!("{path}.velocity"), velocity);
         }
+        super::domain::validate_contact_angle(
+            v,
+            &format!("{path}.contact_angle"),
+            self.contact_angle,
+        );
     }
 }

@@ -15,6 +15,9 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::sync::Arc;
 
+/// Why a wall's or an obstacle's contact angle is refused in a scene without surface tension.
+const NO_TENSION_FOR_ANGLE: &str = "a contact angle acts on a liquid with surface tension, and no material here has one (give a `liquid` a `surface_tension`, or remove the angle)";
+
 /// A scene that passed every check, with its materials built and particles generated.
 pub struct ValidatedScene {
     /// The scene as parsed (defaults filled in).
@@ -344,7 +347,15 @@ impl Validator {
                 if wall.contact_angle.is_some() {
                     self.err(
                         format!("domain.walls[{i}].contact_angle"),
-                        "a contact angle acts on a liquid with surface tension, and no material here has one (give a `liquid` a `surface_tension`, or remove the angle)",
+                        NO_TENSION_FOR_ANGLE,
+                    );
+                }
+            }
+            for (i, obstacle) in s.obstacles.iter().enumerate() {
+                if obstacle.contact_angle.is_some() {
+                    self.err(
+                        format!("obstacles[{i}].contact_angle"),
+                        NO_TENSION_FOR_ANGLE,
                     );
                 }
             }

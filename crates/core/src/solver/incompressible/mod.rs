@@ -150,6 +150,11 @@ impl<const D: usize> Incompressible<D> {
                     g.material.surface_tension(),
                     g.material.density(),
                     boundaries.wall_planes().collect(),
+                    boundaries.solid_images(
+                        grid,
+                        surface_tension::IMAGE_REACH,
+                        surface_tension::FOLD_REACH,
+                    ),
                 )
             });
         let dx = grid.dx;

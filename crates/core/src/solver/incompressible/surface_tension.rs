@@ -17,15 +17,16 @@
 //! not mistaken for a free surface, and the liquid meets the wall at 90°; a wall with a
 //! static contact angle θ (`domain.walls[].contact_angle`) instead continues the colour
 //! into the wall along lines at θ to it (the level-set contact-angle extension), so the
-//! curvature next to the contact line is the meniscus's. Obstacles and other bodies are
-//! not mirrored and look like voids.
+//! curvature next to the contact line is the meniscus's. Obstacles do the same
+//! (`obstacles[].contact_angle`): nodes inside one, near its surface, take the image
+//! across the surface's nearest point; other bodies are not mirrored and look like voids.
 //!
 //! Explicit in the surface's shape, so the step is bounded by a capillary wave limit:
 //! dt ≤ √(ρ·dx³ / (25π·σ)), 0.4 times Brackbill et al.'s √(ρ̄·dx³/(2πσ)) with ρ̄ = ρ/2
 //! (the mean of the liquid's and the void's densities). The textbook bound times the
 //! scene's `cfl` 0.5 let a drop of radius 20 cells lose its pressure within 0.05 s; 0.4 of
 //! it (the same as `cfl` 0.2) keeps it within 0.4%.
-use crate::boundary::{WallPlane, mirror_pairs};
+use crate::boundary::{SolidImage, WallPlane, mirror_pairs};
 use crate::grid::{Grid, node_coords};
 use crate::math::Vector;
 
@@ -46,6 +47,12 @@ const BAND_WEIGHTS: [f64; 5] = [1.0, 2.0, 3.0, 2.0, 1.0];
 /// Least difference of the wall plane's colour on the two sides of a node that tells on
 /// which side the liquid lies (a contact line within reach).
 const CLEAR_SIDE: f64 = 0.1;
+/// Depth, in cells, inside an obstacle down to which the colour takes its image: as far as
+/// the smoothing, the two differences and the band mean reach from a surface node.
+pub(super) const IMAGE_REACH: f64 = 4.0;
+/// Distance, in cells, in front of an obstacle within which the particles' kernels reach
+/// into it, so a node there gets the image's share of the colour.
+pub(super) const FOLD_REACH: f64 = 2.0;
 
 /// The capillary wave step limit √(ρ·dx³/(25π·σ)) of a liquid (unbounded without surface
 /// tension).
@@ -76,12 +83,20 @@ pub(super) struct SurfaceTension<const D: usize> {
     touches_liquid: Vec<bool>,
     /// The walls, across which the colour is mirrored.
     walls: Vec<WallPlane>,
+    /// The nodes near obstacles' surfaces, inside (which take the colour's image) and in
+    /// front (which take the image's share of what the particles put inside).
+    solid_images: Vec<SolidImage<D>>,
 }
 
 impl<const D: usize> SurfaceTension<D> {
     /// For a liquid of surface tension `sigma` (> 0) and density `density` between
-    /// `walls`.
-    pub(super) fn new(sigma: f64, density: f64, walls: Vec<WallPlane>) -> Self {
+    /// `walls` and obstacles (`solid_images`).
+    pub(super) fn new(
+        sigma: f64,
+        density: f64,
+        walls: Vec<WallPlane>,
+        solid_images: Vec<SolidImage<D>>,
+    ) -> Self {
         Self {
             sigma,
             density,
@@ -92,6 +107,7 @@ impl<const D: usize> SurfaceTension<D> {
             curvature: Vec::new(),
             touches_liquid: Vec::new(),
             walls,
+            solid_images,
         }
     }
 
@@ -163,14 +179,6 @@ impl<const D: usize> SurfaceTension<D> {
     /// mirror's value, or on a wall with a contact angle other than 90° the value
     /// [`Self::image`] gives it.
     fn mirror_walls(&mut self, grid: &Grid<D>, fold: bool) {
-        let node_position = |node: usize| {
-            let at = node_coords(&grid.stride, node);
-            let mut x = Vector::<D>::zeros();
-            for d in 0..D {
-                x[d] = at[d] as f64;
-            }
-            x
-        };
         for w in 0..self.walls.len() {
             let wall = self.walls[w];
             let (a, s) = (wall.axis, wall.surface);
@@ -206,12 +214,40 @@ impl<const D: usize> SurfaceTension<D> {
                 }
                 let line = i - s * grid.stride[a];
                 for (ghost, _) in mirror_pairs(wall.upper, s, grid.nodes[a]) {
-                    let mut at = node_position(i);
+                    let mut at = node_position(grid, i);
                     at[a] = ghost as f64;
                     let depth = ghost.abs_diff(s) as f64;
                     self.colour[line + ghost * grid.stride[a]] =
                         self.image(grid, &at, &normal, depth, slant);
                 }
+            }
+        }
+        self.mirror_obstacles(grid, fold);
+    }
+
+    /// The obstacles' share of [`Self::mirror_walls`]: with `fold`, a node in front of an
+    /// obstacle gains what the particles put at its mirror point inside; then every node
+    /// inside near the surface takes [`Self::image`] across the surface's nearest point.
+    fn mirror_obstacles(&mut self, grid: &Grid<D>, fold: bool) {
+        if self.solid_images.is_empty() {
+            return;
+        }
+        if fold {
+            self.scratch.copy_from_slice(&self.colour);
+            for image in self.solid_images.iter().filter(|image| image.depth < 0.0) {
+                let mirror = node_position(grid, image.node) + image.normal * (2.0 * image.depth);
+                self.colour[image.node] += sample(&self.scratch, grid, &mirror);
+            }
+            for image in self.solid_images.iter().filter(|image| image.depth == 0.0) {
+                self.colour[image.node] *= 2.0;
+            }
+        }
+        for k in 0..self.solid_images.len() {
+            let image = self.solid_images[k];
+            if image.depth > 0.0 {
+                let slant = 1.0 / image.contact_angle.tan();
+                let at = node_position(grid, image.node);
+                self.colour[image.node] = self.image(grid, &at, &image.normal, image.depth, slant);
             }
         }
     }
@@ -348,6 +384,16 @@ impl<const D: usize> SurfaceTension<D> {
         }
         if weights > 0.0 { sum / weights } else { 0.0 }
     }
+}
+
+/// Node `node`'s position in node units (its index along each axis).
+fn node_position<const D: usize>(grid: &Grid<D>, node: usize) -> Vector<D> {
+    let at = node_coords(&grid.stride, node);
+    let mut x = Vector::<D>::zeros();
+    for d in 0..D {
+        x[d] = at[d] as f64;
+    }
+    x
 }
 
 /// The field `colour` at `x` (node units), interpolated linearly between the nodes and clamped

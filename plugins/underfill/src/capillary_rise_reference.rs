@@ -1,0 +1,193 @@
+//! Reference for capillary rise (`obstacles[].contact_angle` under gravity): two parallel
+//! plates dipping into a pool draw the liquid up between them to Jurin's height
+//! h = 2σ·cos θ/(ρ·g·w) above the pool's level (plates w apart). The balance is of forces
+//! on the whole column (the wetting pull 2σ·cos θ per unit depth against the weight of the
+//! liquid above the pool), so it holds for the column's mean height, whatever the shape of
+//! the meniscus, and is what this reference measures.
+
+use mpm_core::output::Comparison;
+use mpm_core::reference::{
+    Frame, Reference, ReferenceFactory, ReferenceLaw, TypedReferenceFactory, compare,
+};
+use mpm_core::scene::{Issue, Scene};
+use mpm_core::section::Checks;
+use serde::Deserialize;
+use std::sync::Arc;
+
+/// Liquid between plates at `plates[0]` and `plates[1]` along `across` (the inner faces),
+/// gravity along −`up`, with the pool's level measured over the stretches `pool` along
+/// `across`, away from the plates. Heights are liquid volume over footprint (the particles'
+/// volumes summed in each stretch, over its width times the domain's extent along the other
+/// axes), so the pool and the column must stand on the same flat floor. Error: relative
+/// error of the rise (column height − pool height) against Jurin's 2σ·cos θ/(ρ·g·w), at
+/// the last frame. Comparison: `jurin_rise`.
+#[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CapillaryRiseParams {
+    /// Positions of the plates' inner faces along `across`, m (lower first).
+    pub plates: [f64; 2],
+    /// Stretches `[from, to]` along `across`, m, over which the pool's level is measured.
+    pub pool: Vec<[f64; 2]>,
+    /// Axis normal to the plates (default 0).
+    #[serde(default)]
+    pub across: usize,
+    /// Axis against gravity (default 1).
+    #[serde(default = "default_up")]
+    pub up: usize,
+    /// Surface tension σ, N/m.
+    pub surface_tension: f64,
+    /// Static contact angle θ on the plates, degrees, through the liquid.
+    pub contact_angle: f64,
+    /// Density ρ of the liquid, kg/m³.
+    pub density: f64,
+}
+
+fn default_up() -> usize {
+    1
+}
+
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+struct CapillaryRise {
+    p: CapillaryRiseParams,
+    /// Gravity's magnitude along −`up`, m/s².
+    gravity: f64,
+    /// The domain's extent along the axes other than `across` and `up` (1 in 2D), m.
+    depth: f64,
+    error: Option<f64>,
+    comparisons: Vec<Comparison>,
+}
+
+impl CapillaryRise {
+    /// Jurin's height 2σ·cos θ/(ρ·g·w).
+    fn jurin(&self) -> f64 {
+        let p = &self.p;
+        let w = p.plates[1] - p.plates[0];
+        2.0 * p.surface_tension * p.contact_angle.to_radians().cos()
+            / (p.density * self.gravity * w)
+    }
+}
+
+impl ReferenceLaw for CapillaryRise {
+    fn kind(&self) -> &'static str {
+        "relative error of the mean rise of the liquid between plates against Jurin's height, last frame"
+    }
+
+    fn observe<const D: usize>(&mut self, frame: Frame<'_, D>) {
+        let p = &self.p;
+        let particles = frame.particles;
+        let (mut column, mut pool) = (0.0, 0.0);
+        for (x, volume) in particles.position.iter().zip(&particles.volume0) {
+            let s = x[p.across];
+            if s > p.plates[0] && s < p.plates[1] {
+                column += volume;
+            }
+            if p.pool.iter().any(|[from, to]| s > *from && s < *to) {
+                pool += volume;
+            }
+        }
+        let width: f64 = p.pool.iter().map(|[from, to]| to - from).sum();
+        let column = column / ((p.plates[1] - p.plates[0]) * self.depth);
+        let pool = pool / (width * self.depth);
+        let exact = self.jurin();
+        self.error = Some(((column - pool) - exact).abs() / exact.abs());
+        self.comparisons = vec![compare("jurin_rise", column - pool, exact)];
+    }
+
+    fn error(&self) -> Option<f64> {
+        self.error
+    }
+
+    fn comparisons(&self) -> Vec<Comparison> {
+        self.comparisons.clone()
+    }
+}
+
+fn build_capillary_rise(
+    p: CapillaryRiseParams,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Reference>, Vec<Issue>> {
+    let mut c = Checks::new(path);
+    let dimension = scene.dimension as usize;
+    if !(p.plates.iter().all(|x| x.is_finite()) && p.plates[1] > p.plates[0]) {
+        c.error("plates", "must be two finite positions, the lower first");
+    }
+    if p.pool.is_empty() {
+        c.error(
+            "pool",
+            "must name at least one stretch away from the plates",
+        );
+    }
+    for (i, [from, to]) in p.pool.iter().enumerate() {
+        if !(from.is_finite() && to.is_finite() && to > from) {
+            c.error(
+                &format!("pool[{i}]"),
+                "must be two finite positions, the lower first",
+            );
+        } else if *to > p.plates[0] && *from < p.plates[1] {
+            c.error(
+                &format!("pool[{i}]"),
+                "must lie outside the plates: the pool's level is measured away from them",
+            );
+        }
+    }
+    if p.across >= dimension {
+        c.error("across", format!("must be an axis below {dimension}"));
+    }
+    if p.up >= dimension || p.up == p.across {
+        c.error(
+            "up",
+            format!("must be an axis below {dimension} other than `across`"),
+        );
+    }
+    c.positive("surface_tension", p.surface_tension);
+    c.positive("density", p.density);
+    let angle = p.contact_angle;
+    if !(angle.is_finite() && angle > 0.0 && angle < 180.0) {
+        c.error(
+            "contact_angle",
+            "must lie strictly between 0 and 180 degrees",
+        );
+    } else if angle.to_radians().cos().abs() < 1e-6 {
+        c.error(
+            "contact_angle",
+            "must differ from 90 degrees: the liquid does not rise, and no error relative to 0 exists",
+        );
+    }
+    let gravity = if p.up < dimension {
+        -scene
+            .solver
+            .gravity
+            .as_ref()
+            .and_then(|g| g.get(p.up).copied())
+            .unwrap_or(0.0)
+    } else {
+        0.0
+    };
+    if gravity.is_nan() || gravity <= 0.0 {
+        c.error(
+            "up",
+            "gravity (`solver.gravity`) must pull against this axis: Jurin's height needs it",
+        );
+    }
+    c.finish()?;
+    let depth = (0..dimension)
+        .filter(|&d| d != p.across && d != p.up)
+        .map(|d| scene.domain.max[d] - scene.domain.min[d])
+        .product();
+    Ok(Arc::new(CapillaryRise {
+        p,
+        gravity,
+        depth,
+        error: None,
+        comparisons: Vec::new(),
+    }))
+}
+
+/// The `capillary_rise` reference type.
+pub fn factories() -> Vec<Box<dyn ReferenceFactory>> {
+    vec![Box::new(TypedReferenceFactory::new(
+        "capillary_rise",
+        build_capillary_rise,
+    ))]
+}
