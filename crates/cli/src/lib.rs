@@ -19,6 +19,7 @@ pub mod stability;
 pub mod stability_case;
 pub mod stability_cohesive;
 pub mod stability_implicit;
+pub mod stability_liquid;
 pub mod stability_long;
 mod stability_long_plot;
 pub mod stability_map;

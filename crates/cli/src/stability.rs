@@ -502,6 +502,7 @@ pub fn cases() -> Vec<Case> {
     ];
     cases.extend(crate::stability_cohesive::cases());
     cases.extend(crate::stability_implicit::cases());
+    cases.extend(crate::stability_liquid::cases());
     cases.extend(crate::stability_peer::cases());
     cases
 }
