@@ -41,7 +41,8 @@ pub use capillary_filling::{capillary_fill_time, capillary_front};
 pub use liquid::{Liquid, LiquidParameters};
 pub use liquid_references::{MARTIN_MOYCE_N2, martin_moyce_front};
 pub use parameters::{
-    Air, BumpArray, BumpPattern, FlowMode, Fluid, InitialFill, Reservoir, UnderfillParameters,
+    Air, BumpArray, BumpPattern, FlowMode, Fluid, FluidSection, InitialFill, Reservoir,
+    UnderfillParameters,
 };
 pub use underfill::{FILL_COLUMNS, FILL_TABLE, Underfill, VOIDS_TABLE};
 pub use viscosity::{CastroMacoskoParameters, CrossParameters, MAX_VISCOSITY, Viscosity};
@@ -91,7 +92,8 @@ fn build(
     if !issues.is_empty() {
         return Err(issues);
     }
-    Ok(Arc::new(Underfill::new(params, scene)))
+    let fluid = params.resolved_fluid(scene, &format!("{path}.fluid"))?;
+    Ok(Arc::new(Underfill::new(params, fluid, scene)))
 }
 
 #[cfg(test)]

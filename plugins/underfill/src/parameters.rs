@@ -17,8 +17,9 @@ pub struct UnderfillParameters {
     /// Materials whose bodies make up the gap (default: every material a body uses).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub materials: Vec<String>,
-    /// The liquid.
-    pub fluid: Fluid,
+    /// The liquid: its contact angle, and density, viscosity and surface tension unless the
+    /// gap's material is a `liquid` that has them.
+    pub fluid: FluidSection,
     /// Gap height h between die and substrate, m. Gap-averaged mode: the plate spacing.
     /// Cross-section mode: measured from the geometry across `gap_axis` instead.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -80,9 +81,28 @@ pub enum FlowMode {
     CrossSection,
 }
 
-/// The liquid's properties.
+/// Scene section `physics.underfill.fluid`: the contact angle, and the liquid's own
+/// properties where the gap's material does not give them (a flow-only scene makes the
+/// gap's material the `liquid` itself and names each property once).
 #[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
+pub struct FluidSection {
+    /// Density, kg/m³ (inertia of the cross-section mode); default: the gap's liquid's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<f64>,
+    /// Viscosity law; default: the gap's liquid's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscosity: Option<Viscosity>,
+    /// Surface tension σ, N/m; default: the gap's liquid's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_tension: Option<f64>,
+    /// Static contact angle θ on die and substrate, degrees (below 90: the gap wets).
+    pub contact_angle: f64,
+}
+
+/// The liquid's properties, resolved from `physics.underfill.fluid` and the gap's `liquid`
+/// material.
+#[derive(Clone, Debug)]
 pub struct Fluid {
     /// Density, kg/m³ (inertia of the cross-section mode).
     pub density: f64,
@@ -98,6 +118,39 @@ impl Fluid {
     /// σ·cosθ, N/m.
     pub fn wetting_tension(&self) -> f64 {
         self.surface_tension * self.contact_angle.to_radians().cos()
+    }
+
+    /// Every problem with the resolved properties, with JSON paths below `fp` (the
+    /// section's, `physics.underfill.fluid`).
+    fn check(&self, fp: &str) -> Vec<Issue> {
+        let mut issues = Vec::new();
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.density) {
+            issues.push(Issue::new(
+                format!("{fp}.density"),
+                format!("must be a finite number > 0 (got {})", self.density),
+            ));
+        }
+        if !positive(self.surface_tension) {
+            issues.push(Issue::new(
+                format!("{fp}.surface_tension"),
+                format!(
+                    "must be a finite number > 0 N/m (got {})",
+                    self.surface_tension
+                ),
+            ));
+        }
+        if !(self.contact_angle.is_finite() && (0.0..90.0).contains(&self.contact_angle)) {
+            issues.push(Issue::new(
+                format!("{fp}.contact_angle"),
+                format!(
+                    "must lie in [0, 90) degrees: a liquid that does not wet the gap is not drawn in (got {})",
+                    self.contact_angle
+                ),
+            ));
+        }
+        issues.extend(self.viscosity.check(&format!("{fp}.viscosity")));
+        issues
     }
 }
 
@@ -235,6 +288,59 @@ impl Default for Air {
 }
 
 impl UnderfillParameters {
+    /// The liquid's properties: each one the `fluid` section gives, else the gap's
+    /// `liquid` material's (the first gap material of type `liquid`); an issue at
+    /// `fp.<property>` for each that neither gives.
+    pub fn resolved_fluid(&self, scene: &Scene, fp: &str) -> Result<Fluid, Vec<Issue>> {
+        let gap_materials: Vec<&String> = if self.materials.is_empty() {
+            scene.bodies.iter().map(|b| &b.material).collect()
+        } else {
+            self.materials.iter().collect()
+        };
+        let liquid = gap_materials.iter().find_map(|name| {
+            let mut value = scene.materials.get(name.as_str())?.clone();
+            let object = value.as_object_mut()?;
+            if object.remove("type")?.as_str()? != "liquid" {
+                return None;
+            }
+            serde_json::from_value::<crate::liquid::LiquidParameters>(value).ok()
+        });
+        let section = &self.fluid;
+        let mut issues = Vec::new();
+        let mut missing = |field: &str| {
+            issues.push(Issue::new(
+                format!("{fp}.{field}"),
+                "give it here, or make the gap's material a `liquid` that has it",
+            ))
+        };
+        let density = section.density.or(liquid.as_ref().map(|l| l.density));
+        let viscosity = section
+            .viscosity
+            .clone()
+            .or(liquid.as_ref().map(|l| l.viscosity.clone()));
+        let surface_tension = section
+            .surface_tension
+            .or(liquid.as_ref().map(|l| l.surface_tension));
+        if density.is_none() {
+            missing("density");
+        }
+        if viscosity.is_none() {
+            missing("viscosity");
+        }
+        if surface_tension.is_none() {
+            missing("surface_tension");
+        }
+        match (density, viscosity, surface_tension) {
+            (Some(density), Some(viscosity), Some(surface_tension)) => Ok(Fluid {
+                density,
+                viscosity,
+                surface_tension,
+                contact_angle: section.contact_angle,
+            }),
+            _ => Err(issues),
+        }
+    }
+
     /// Every problem with the section, with JSON paths below `path`.
     pub fn check(&self, path: &str, scene: &Scene) -> Vec<Issue> {
         let mut issues = Vec::new();
@@ -259,33 +365,11 @@ impl UnderfillParameters {
                 ));
             }
         }
-        let f = &self.fluid;
         let fp = format!("{path}.fluid");
-        if !positive(f.density) {
-            issues.push(Issue::new(
-                format!("{fp}.density"),
-                format!("must be a finite number > 0 (got {})", f.density),
-            ));
+        match self.resolved_fluid(scene, &fp) {
+            Ok(f) => issues.extend(f.check(&fp)),
+            Err(missing) => issues.extend(missing),
         }
-        if !positive(f.surface_tension) {
-            issues.push(Issue::new(
-                format!("{fp}.surface_tension"),
-                format!(
-                    "must be a finite number > 0 N/m (got {})",
-                    f.surface_tension
-                ),
-            ));
-        }
-        if !(f.contact_angle.is_finite() && (0.0..90.0).contains(&f.contact_angle)) {
-            issues.push(Issue::new(
-                format!("{fp}.contact_angle"),
-                format!(
-                    "must lie in [0, 90) degrees: a liquid that does not wet the gap is not drawn in (got {})",
-                    f.contact_angle
-                ),
-            ));
-        }
-        issues.extend(f.viscosity.check(&format!("{fp}.viscosity")));
         match self.mode {
             FlowMode::GapAveraged => match self.gap {
                 Some(h) if positive(h) => {}

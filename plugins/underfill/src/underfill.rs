@@ -6,7 +6,7 @@ use crate::cross_section::{self, CrossSectionWork};
 use crate::front::{FULL_AT, FlowState};
 use crate::hele_shaw::{self, HeleShawWork};
 use crate::lattice::{self, Lattice, LatticeInput};
-use crate::parameters::{FlowMode, InitialFill, UnderfillParameters};
+use crate::parameters::{FlowMode, Fluid, InitialFill, UnderfillParameters};
 use crate::voids::{VOID_COLUMNS, VoidTracker};
 use mpm_core::physics::{PhysicsContext, PhysicsFault, PhysicsLaw, SharedFieldSpec, Stage};
 use mpm_core::scene::{Scene, Side};
@@ -37,6 +37,8 @@ const FIELDS: [&str; 5] = [
 /// Viscous underfill flow (see the crate documentation).
 pub struct Underfill {
     params: UnderfillParameters,
+    /// The liquid's properties (the `fluid` section's and the gap's `liquid` material's).
+    fluid: Fluid,
     vents: Vec<Side>,
     domain: ([f64; 2], [f64; 2]),
     /// Longest step, s (the output interval): the step when nothing flows.
@@ -63,7 +65,7 @@ struct Workspace {
 
 impl Underfill {
     /// The operator for checked parameters of `scene`.
-    pub fn new(params: UnderfillParameters, scene: &Scene) -> Self {
+    pub fn new(params: UnderfillParameters, fluid: Fluid, scene: &Scene) -> Self {
         let vents = params.vents.clone().unwrap_or_else(|| {
             [Side::XMin, Side::XMax, Side::YMin, Side::YMax]
                 .into_iter()
@@ -86,6 +88,7 @@ impl Underfill {
             domain: (pick(&d.min), pick(&d.max)),
             longest_step: scene.solver.end_time / scene.output.frames.max(1) as f64,
             params,
+            fluid,
             workspace: Mutex::new(None),
         }
     }
@@ -113,7 +116,7 @@ impl Underfill {
             domain: self.domain,
             particles: &particles,
             mode: p.mode,
-            wetting_tension: p.fluid.wetting_tension(),
+            wetting_tension: self.fluid.wetting_tension(),
             gap: p.gap,
             gap_axis: p.gap_axis,
             bumps: p.bumps.as_ref(),
@@ -190,7 +193,7 @@ impl Underfill {
     /// Cell viscosities from the particles' temperature and cure (where physics gives
     /// them) and the last step's shear rate.
     fn viscosity<const D: usize>(&self, ws: &mut Workspace, ctx: &PhysicsContext<'_, D>) {
-        let law = &self.params.fluid.viscosity;
+        let law = &self.fluid.viscosity;
         let temperature = ctx.fields.get("temperature");
         let cure = if law.uses_cure() {
             ctx.fields.get("cure")
@@ -257,7 +260,7 @@ impl Underfill {
         }
         if let Some(work) = ws.cross_section.as_mut()
             && let Err(e) =
-                cross_section::solve_step(&ws.lattice, &mut ws.state, work, p.fluid.density, dt)
+                cross_section::solve_step(&ws.lattice, &mut ws.state, work, self.fluid.density, dt)
         {
             let c = ws.lattice.coords(e.column.min(ws.lattice.len() - 1));
             ctx.report.fail(PhysicsFault {

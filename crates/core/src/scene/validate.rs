@@ -376,10 +376,10 @@ impl Validator {
                     format!("materials.{name}.type"),
                     "incompressible mechanics moves liquids only (a material with a viscosity and no equation of state, e.g. type `liquid`); solids in the same scene are not supported yet",
                 );
-            } else if liquid && !incompressible {
+            } else if liquid && !incompressible && s.solver.mechanics != Mechanics::Off {
                 self.err(
                     format!("materials.{name}.type"),
-                    "a liquid has no equation of state: its pressure comes from `solver.mechanics: {\"incompressible\": {}}`",
+                    "a liquid has no equation of state: its pressure comes from `solver.mechanics: {\"incompressible\": {}}` (with `\"off\"` it stays where it is, as the gap a grid flow physics fills)",
                 );
             }
         }
