@@ -182,6 +182,10 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn liquid_viscosity(&self) -> Option<f64> {
         None
     }
+    /// Called before each step's stress update in the incompressible mode: a liquid starts
+    /// its bound [`ConstitutiveLaw::liquid_viscosity`] afresh, so that the bound follows its
+    /// viscosity down as well as up (a liquid that physics heats thins, and its step grows).
+    fn forget_viscosity_bound(&self) {}
     /// A liquid's surface tension against the void, N/m: the incompressible mode sets the
     /// Laplace pressure σ·κ on its free surface. 0, the default, is no surface tension.
     fn surface_tension(&self) -> f64 {
@@ -230,6 +234,8 @@ pub trait Material: Send + Sync {
     fn stress_derivative_3d(&self, batch: TangentBatch<'_, 3>);
     /// See [`ConstitutiveLaw::liquid_viscosity`].
     fn liquid_viscosity(&self) -> Option<f64>;
+    /// See [`ConstitutiveLaw::forget_viscosity_bound`].
+    fn forget_viscosity_bound(&self);
     /// See [`ConstitutiveLaw::surface_tension`].
     fn surface_tension(&self) -> f64;
     /// 2D [`ConstitutiveLaw::liquid_viscosities`].
@@ -273,6 +279,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn liquid_viscosity(&self) -> Option<f64> {
         ConstitutiveLaw::liquid_viscosity(self)
+    }
+    fn forget_viscosity_bound(&self) {
+        ConstitutiveLaw::forget_viscosity_bound(self)
     }
     fn surface_tension(&self) -> f64 {
         ConstitutiveLaw::surface_tension(self)

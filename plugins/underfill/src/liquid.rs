@@ -58,7 +58,8 @@ const READS: &[SharedRead] = &[
 #[derive(Debug)]
 pub struct Liquid {
     params: LiquidParameters,
-    /// Largest viscosity of the last update (f64 bits), for the viscous step limit.
+    /// Largest viscosity of the last step's update (f64 bits; at the start, the law's at
+    /// `temperature`), for the viscous step limit.
     max_viscosity: AtomicU64,
 }
 
@@ -148,6 +149,11 @@ impl ConstitutiveLaw for Liquid {
 
     fn liquid_viscosity(&self) -> Option<f64> {
         Some(f64::from_bits(self.max_viscosity.load(Ordering::Relaxed)))
+    }
+
+    fn forget_viscosity_bound(&self) {
+        self.max_viscosity
+            .store(0.0f64.to_bits(), Ordering::Relaxed);
     }
 
     fn surface_tension(&self) -> f64 {

@@ -270,6 +270,9 @@ where
             .deformation_gradient
             .fill(Matrix::<D>::identity());
         sim.advance_physics(dt, true);
+        for group in &sim.particles.groups {
+            group.material.forget_viscosity_bound();
+        }
         sim.update_stresses(dt);
         self.pressure_to_particles(sim);
     }
