@@ -48,6 +48,20 @@ fn obstacle_contact_angles_are_checked() {
 }
 
 #[test]
+fn liquid_particles_inside_an_obstacle_are_refused() {
+    // Without the holes the pool's particles fill the plates' lower ends (192 in each).
+    let issues = invalid_example("capillary-rise.json", &["bodies[0].holes=[]"]);
+    for k in 0..2 {
+        assert!(
+            issues.iter().any(|i| i.starts_with("bodies[0]")
+                && i.contains("192 of its liquid particles")
+                && i.contains(&format!("obstacles[{k}]"))),
+            "{issues:?}"
+        );
+    }
+}
+
+#[test]
 fn the_capillary_rise_reference_is_checked() {
     for (overrides, path) in [
         (

@@ -63,6 +63,35 @@ pub enum ObstacleShape {
     },
 }
 
+impl ObstacleShape {
+    /// Whether the point `x` (one number per dimension) lies strictly inside the shape at
+    /// its place at time 0.
+    pub fn contains(&self, x: &[f64]) -> bool {
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| p * q).sum::<f64>();
+        let offset = |a: &[f64]| -> Vec<f64> { x.iter().zip(a).map(|(p, q)| p - q).collect() };
+        match self {
+            ObstacleShape::Plane { point, normal } => dot(&offset(point), normal) < 0.0,
+            ObstacleShape::Box { min, max } => x
+                .iter()
+                .zip(min.iter().zip(max))
+                .all(|(p, (lo, hi))| p > lo && p < hi),
+            ObstacleShape::Sphere { center, radius } => {
+                let r = offset(center);
+                dot(&r, &r) < radius * radius
+            }
+            ObstacleShape::Cylinder {
+                center,
+                axis,
+                radius,
+            } => {
+                let r = offset(center);
+                let along = dot(&r, axis) / dot(axis, axis).sqrt();
+                dot(&r, &r) - along * along < radius * radius
+            }
+        }
+    }
+}
+
 impl Obstacle {
     /// Checks an obstacle at `path` (`obstacles[0]`): shape, contact law, velocity.
     pub(super) fn validate(&self, v: &mut Validator, path: &str) {
@@ -109,5 +138,35 @@ impl Obstacle {
             &format!("{path}.contact_angle"),
             self.contact_angle,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ObstacleShape;
+
+    #[test]
+    fn contains_is_strictly_inside_each_shape() {
+        let plane = ObstacleShape::Plane {
+            point: vec![0.0, 1.0],
+            normal: vec![0.0, 2.0],
+        };
+        assert!(plane.contains(&[5.0, 0.5]) && !plane.contains(&[5.0, 1.5]));
+        let cube = ObstacleShape::Box {
+            min: vec![0.0, 0.0],
+            max: vec![1.0, 1.0],
+        };
+        assert!(cube.contains(&[0.5, 0.5]) && !cube.contains(&[1.0, 0.5]));
+        let disk = ObstacleShape::Sphere {
+            center: vec![0.0, 0.0],
+            radius: 1.0,
+        };
+        assert!(disk.contains(&[0.6, 0.6]) && !disk.contains(&[0.8, 0.8]));
+        let rod = ObstacleShape::Cylinder {
+            center: vec![0.0, 0.0, 0.0],
+            axis: vec![0.0, 0.0, 3.0],
+            radius: 1.0,
+        };
+        assert!(rod.contains(&[0.5, 0.5, 100.0]) && !rod.contains(&[1.0, 0.5, 0.0]));
     }
 }
