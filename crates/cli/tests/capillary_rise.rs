@@ -12,7 +12,9 @@ fn liquid_rises_between_plates_to_jurins_height() {
     // (at 0.5–0.8 s the column still moves by ±0.05 mm). Bound 1.5%. Before the colour's
     // images inside obstacles (obstacles looked like voids) the scene had no contact angle
     // on them; with the pool's level measured within 3 mm of the plates' outer menisci the
-    // same run read 3.7 mm, so the pool reaches 12 mm beyond each plate.
+    // same run read 3.7 mm, so the pool reaches 12 mm beyond each plate. This holds the
+    // 30° figure; it does not verify obstacle angles at large: at 60° the rise is 45%
+    // short, and docs/wip/meniscus-obstacle-plates.json fails (README, issue 19).
     let m = run(&load_example("capillary-rise.json", &[]));
     let error = m.error.expect("error");
     assert!(error < 0.015, "rise error {error}: {m:?}");
