@@ -81,41 +81,40 @@ fn largest_speed(frames: &Frames, hi: [f64; 2]) -> Result<(f64, bool), String> {
     Ok((speed, inside))
 }
 
-/// The collapsing column: no particle faster than the front of Ritter's dam break,
-/// 2·√(g·H) (the shallow-water bound, above free fall from the top, √(2·g·H)), and none
-/// out of the tank.
-fn column_check(_: &Metrics, frames: &Frames) -> Result<String, String> {
-    let (speed, inside) = largest_speed(frames, [0.3, 0.15 + COLUMN])?;
-    let bound = 2.0 * (9.81 * COLUMN).sqrt();
-    if !inside {
-        return Err("a particle left the tank".into());
-    }
-    if speed > bound {
-        return Err(format!(
-            "largest speed {speed:.3} m/s exceeds Ritter's front speed, {bound:.3} m/s"
-        ));
-    }
-    Ok(format!(
-        "largest speed {speed:.3} m/s (Ritter's front speed {bound:.3} m/s)"
-    ))
-}
-
-/// The meniscus: its largest speed stays below a tenth of the capillary speed σ/μ =
-/// 0.35 m/s, and the liquid stays between the walls.
-fn meniscus_check(_: &Metrics, frames: &Frames) -> Result<String, String> {
-    let (speed, inside) = largest_speed(frames, [0.005, 0.01])?;
-    let bound = 0.1 * 0.07 / 0.2;
+/// No particle faster than `bound` m/s (named `what`) over the frames, and none out of
+/// `[0, hi]`.
+fn speed_within(frames: &Frames, hi: [f64; 2], bound: f64, what: &str) -> Result<String, String> {
+    let (speed, inside) = largest_speed(frames, hi)?;
     if !inside {
         return Err("a particle left the domain".into());
     }
     if speed > bound {
         return Err(format!(
-            "largest speed {speed:.3e} m/s exceeds a tenth of sigma/mu, {bound:.3e} m/s"
+            "largest speed {speed:.3e} m/s exceeds {what}, {bound:.3e} m/s"
         ));
     }
     Ok(format!(
-        "largest speed {speed:.3e} m/s (a tenth of sigma/mu: {bound:.3e} m/s)"
+        "largest speed {speed:.3e} m/s ({what} {bound:.3e} m/s)"
     ))
+}
+
+/// The collapsing column: no particle faster than the front of Ritter's dam break,
+/// 2·√(g·H) (the shallow-water bound, above free fall from the top, √(2·g·H)), and none
+/// out of the tank.
+fn column_check(_: &Metrics, frames: &Frames) -> Result<String, String> {
+    let bound = 2.0 * (9.81 * COLUMN).sqrt();
+    speed_within(frames, [0.3, 0.15 + COLUMN], bound, "Ritter's front speed")
+}
+
+/// The meniscus: its largest speed stays below a tenth of the capillary speed σ/μ =
+/// 0.35 m/s, and the liquid stays between the walls.
+fn meniscus_check(_: &Metrics, frames: &Frames) -> Result<String, String> {
+    speed_within(
+        frames,
+        [0.005, 0.01],
+        0.1 * 0.07 / 0.2,
+        "a tenth of sigma/mu",
+    )
 }
 
 /// The single-particle drop: it keeps its speed within a tenth, and stays in the domain.

@@ -5,6 +5,7 @@
 //! liquid above the pool), so it holds for the column's mean height, whatever the shape of
 //! the meniscus, and is what this reference measures.
 
+use crate::meniscus_reference::{check_angle, check_plates};
 use mpm_core::output::Comparison;
 use mpm_core::reference::{
     Frame, Reference, ReferenceFactory, ReferenceLaw, TypedReferenceFactory, compare,
@@ -109,9 +110,7 @@ fn build_capillary_rise(
 ) -> Result<Arc<dyn Reference>, Vec<Issue>> {
     let mut c = Checks::new(path);
     let dimension = scene.dimension as usize;
-    if !(p.plates.iter().all(|x| x.is_finite()) && p.plates[1] > p.plates[0]) {
-        c.error("plates", "must be two finite positions, the lower first");
-    }
+    check_plates(&mut c, p.plates, p.across, p.up, dimension);
     if p.pool.is_empty() {
         c.error(
             "pool",
@@ -131,29 +130,13 @@ fn build_capillary_rise(
             );
         }
     }
-    if p.across >= dimension {
-        c.error("across", format!("must be an axis below {dimension}"));
-    }
-    if p.up >= dimension || p.up == p.across {
-        c.error(
-            "up",
-            format!("must be an axis below {dimension} other than `across`"),
-        );
-    }
     c.positive("surface_tension", p.surface_tension);
     c.positive("density", p.density);
-    let angle = p.contact_angle;
-    if !(angle.is_finite() && angle > 0.0 && angle < 180.0) {
-        c.error(
-            "contact_angle",
-            "must lie strictly between 0 and 180 degrees",
-        );
-    } else if angle.to_radians().cos().abs() < 1e-6 {
-        c.error(
-            "contact_angle",
-            "must differ from 90 degrees: the liquid does not rise, and no error relative to 0 exists",
-        );
-    }
+    check_angle(
+        &mut c,
+        p.contact_angle,
+        "the liquid does not rise, and no error relative to 0 exists",
+    );
     let gravity = if p.up < dimension {
         -scene
             .solver

@@ -153,27 +153,32 @@ impl ReferenceLaw for Meniscus {
     }
 }
 
-fn build_meniscus(
-    p: MeniscusParams,
-    path: &str,
-    scene: &Scene,
-) -> Result<Arc<dyn Reference>, Vec<Issue>> {
-    let mut c = Checks::new(path);
-    let dimension = scene.dimension as usize;
-    if !(p.plates.iter().all(|x| x.is_finite()) && p.plates[1] > p.plates[0]) {
+/// The checks of two plates' positions along `across` and the `up` axis, shared by the
+/// references between plates (`meniscus`, `capillary_rise`).
+pub(crate) fn check_plates(
+    c: &mut Checks,
+    plates: [f64; 2],
+    across: usize,
+    up: usize,
+    dimension: usize,
+) {
+    if !(plates.iter().all(|x| x.is_finite()) && plates[1] > plates[0]) {
         c.error("plates", "must be two finite positions, the lower first");
     }
-    if p.across >= dimension {
+    if across >= dimension {
         c.error("across", format!("must be an axis below {dimension}"));
     }
-    if p.up >= dimension || p.up == p.across {
+    if up >= dimension || up == across {
         c.error(
             "up",
             format!("must be an axis below {dimension} other than `across`"),
         );
     }
-    c.positive("surface_tension", p.surface_tension);
-    let angle = p.contact_angle;
+}
+
+/// The check of a contact angle in (0, 180) degrees and not 90 (`why_not_90` says what 90
+/// would leave to compare).
+pub(crate) fn check_angle(c: &mut Checks, angle: f64, why_not_90: &str) {
     if !(angle.is_finite() && angle > 0.0 && angle < 180.0) {
         c.error(
             "contact_angle",
@@ -182,9 +187,25 @@ fn build_meniscus(
     } else if angle.to_radians().cos().abs() < 1e-6 {
         c.error(
             "contact_angle",
-            "must differ from 90 degrees: a flat surface has no pressure to compare",
+            format!("must differ from 90 degrees: {why_not_90}"),
         );
     }
+}
+
+fn build_meniscus(
+    p: MeniscusParams,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Reference>, Vec<Issue>> {
+    let mut c = Checks::new(path);
+    let dimension = scene.dimension as usize;
+    check_plates(&mut c, p.plates, p.across, p.up, dimension);
+    c.positive("surface_tension", p.surface_tension);
+    check_angle(
+        &mut c,
+        p.contact_angle,
+        "a flat surface has no pressure to compare",
+    );
     if !p.below.is_finite() {
         c.error("below", "must be a finite height");
     }
