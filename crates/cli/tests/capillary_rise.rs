@@ -7,17 +7,17 @@ use common::{comparison, invalid_example, load_example, run};
 
 #[test]
 fn liquid_rises_between_plates_to_jurins_height() {
-    // examples/capillary-rise.json: plates 3 mm apart (6 cells), θ = 30°, σ = 0.07 N/m,
-    // μ = 0.3 Pa·s, 0.8 s. Jurin: 2σ cos θ/(ρ g w) = 4.12 mm. Measured: 4.125 mm, 0.13%
-    // (at 0.5–0.8 s the column still moves by ±0.05 mm). Bound 1.5%. Before the colour's
-    // images inside obstacles (obstacles looked like voids) the scene had no contact angle
-    // on them; with the pool's level measured within 3 mm of the plates' outer menisci the
-    // same run read 3.7 mm, so the pool reaches 12 mm beyond each plate. This holds the
-    // 30° figure; it does not verify obstacle angles at large: at 60° the rise is 45%
-    // short, and docs/wip/meniscus-obstacle-plates.json fails (README, issue 19).
+    // examples/capillary-rise.json: plates 5 mm thick (10 cells), 3 mm apart (6 cells),
+    // θ = 30°, σ = 0.07 N/m, μ = 0.3 Pa·s, 0.8 s. Jurin: 2σ cos θ/(ρ g w) = 4.12 mm.
+    // Measured: 4.0625 mm, −1.4% (60°: −6.9%). Bound 3%. With plates 3 mm thick (6 cells)
+    // the same run read 0.13% at 30° but −45% at 60°: a node inside a plate thinner than
+    // about 8 cells takes the image across the nearer face, and past the middle that is
+    // the far side's (air in docs/wip/meniscus-obstacle-plates.json, whose thin plates
+    // fail). With the pool's level measured within 3 mm of the plates' outer menisci the
+    // 30° run read 3.7 mm, so the pool reaches 12 mm beyond each plate.
     let m = run(&load_example("capillary-rise.json", &[]));
     let error = m.error.expect("error");
-    assert!(error < 0.015, "rise error {error}: {m:?}");
+    assert!(error < 0.03, "rise error {error}: {m:?}");
     let (rise, jurin) = comparison(&m, "jurin_rise");
     assert!((jurin - 4.121e-3).abs() < 1e-5, "Jurin's height {jurin}");
     assert!(rise > 0.0, "{rise}");
@@ -51,12 +51,12 @@ fn obstacle_contact_angles_are_checked() {
 
 #[test]
 fn liquid_particles_inside_an_obstacle_are_refused() {
-    // Without the holes the pool's particles fill the plates' lower ends (192 in each).
+    // Without the holes the pool's particles fill the plates' lower ends (320 in each).
     let issues = invalid_example("capillary-rise.json", &["bodies[0].holes=[]"]);
     for k in 0..2 {
         assert!(
             issues.iter().any(|i| i.starts_with("bodies[0]")
-                && i.contains("192 of its liquid particles")
+                && i.contains("320 of its liquid particles")
                 && i.contains(&format!("obstacles[{k}]"))),
             "{issues:?}"
         );
@@ -70,7 +70,7 @@ fn the_capillary_rise_reference_is_checked() {
             &["reference.contact_angle=90"][..],
             "reference.contact_angle",
         ),
-        (&["reference.pool=[[0.014,0.016]]"][..], "reference.pool[0]"),
+        (&["reference.pool=[[0.018,0.019]]"][..], "reference.pool[0]"),
         (&["reference.pool=[]"][..], "reference.pool"),
         (&["reference.plates=[0.018,0.015]"][..], "reference.plates"),
         (&["solver.gravity=[0,0]"][..], "reference.up"),
