@@ -67,26 +67,36 @@ impl ObstacleShape {
     /// Whether the point `x` (one number per dimension) lies strictly inside the shape at
     /// its place at time 0.
     pub fn contains(&self, x: &[f64]) -> bool {
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| p * q).sum::<f64>();
-        let offset = |a: &[f64]| -> Vec<f64> { x.iter().zip(a).map(|(p, q)| p - q).collect() };
+        // (x − origin)·direction and |x − origin|², without a temporary vector (validation
+        // asks this of every particle).
+        let along = |origin: &[f64], direction: &[f64]| {
+            x.iter()
+                .zip(origin)
+                .zip(direction)
+                .map(|((p, o), d)| (p - o) * d)
+                .sum::<f64>()
+        };
+        let squared = |origin: &[f64]| {
+            x.iter()
+                .zip(origin)
+                .map(|(p, o)| (p - o).powi(2))
+                .sum::<f64>()
+        };
         match self {
-            ObstacleShape::Plane { point, normal } => dot(&offset(point), normal) < 0.0,
+            ObstacleShape::Plane { point, normal } => along(point, normal) < 0.0,
             ObstacleShape::Box { min, max } => x
                 .iter()
                 .zip(min.iter().zip(max))
                 .all(|(p, (lo, hi))| p > lo && p < hi),
-            ObstacleShape::Sphere { center, radius } => {
-                let r = offset(center);
-                dot(&r, &r) < radius * radius
-            }
+            ObstacleShape::Sphere { center, radius } => squared(center) < radius * radius,
             ObstacleShape::Cylinder {
                 center,
                 axis,
                 radius,
             } => {
-                let r = offset(center);
-                let along = dot(&r, axis) / dot(axis, axis).sqrt();
-                dot(&r, &r) - along * along < radius * radius
+                let length = axis.iter().map(|a| a * a).sum::<f64>().sqrt();
+                let on_axis = along(center, axis) / length;
+                squared(center) - on_axis * on_axis < radius * radius
             }
         }
     }
