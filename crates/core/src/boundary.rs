@@ -129,6 +129,12 @@ pub struct SolidImage<const D: usize> {
     /// Static contact angle of a liquid on the obstacle, radians, measured through the
     /// liquid.
     pub contact_angle: f64,
+    /// For a node inside a thin obstacle: the depth, in cells, behind the surface on the
+    /// far side (reached straight through, against `normal`) when that is within reach,
+    /// else infinity; a thin plate wetted on its far side takes the image from there.
+    pub far_depth: f64,
+    /// The far surface's unit normal, pointing out of the solid (zero without one).
+    pub far_normal: Vector<D>,
 }
 
 /// The (ghost, front) node indices along a wall's axis, nearest the surface first: the
@@ -174,6 +180,33 @@ enum Solid<const D: usize> {
 }
 
 impl<const D: usize> Solid<D> {
+    /// Where a ray from `x` (inside) along the unit `direction` leaves the solid, if within
+    /// `reach`: its distance and the outward normal there (marched in steps of a twentieth
+    /// of the reach, then bisected).
+    fn exit(&self, x: &Vector<D>, direction: &Vector<D>, reach: f64) -> Option<(f64, Vector<D>)> {
+        const STEPS: usize = 20;
+        let step = reach / STEPS as f64;
+        let outside = |t: f64| self.distance_and_normal(&(x + direction * t)).0 >= 0.0;
+        let mut inside_at = 0.0;
+        let mut out_at = (1..=STEPS).map(|k| k as f64 * step).find(|&t| {
+            let out = outside(t);
+            if !out {
+                inside_at = t;
+            }
+            out
+        })?;
+        for _ in 0..30 {
+            let mid = 0.5 * (inside_at + out_at);
+            if outside(mid) {
+                out_at = mid;
+            } else {
+                inside_at = mid;
+            }
+        }
+        let t = 0.5 * (inside_at + out_at);
+        Some((t, self.distance_and_normal(&(x + direction * out_at)).1))
+    }
+
     /// Signed distance (negative inside) and outward unit normal at `x`.
     fn distance_and_normal(&self, x: &Vector<D>) -> (f64, Vector<D>) {
         match self {
@@ -359,19 +392,25 @@ impl<const D: usize> Boundaries<D> {
             let nearest = self
                 .obstacles
                 .iter()
-                .map(|o| (o.solid.distance_and_normal(&x), o.contact_angle))
+                .map(|o| (o.solid.distance_and_normal(&x), o))
                 .min_by(|a, b| a.0.0.total_cmp(&b.0.0));
-            if let Some(((distance, normal), contact_angle)) = nearest
+            if let Some(((distance, normal), obstacle)) = nearest
                 && -distance <= reach * grid.dx
                 && distance <= front * grid.dx
             {
                 // A node on the surface up to round-off is on it.
                 let depth = -distance * grid.inv_dx;
+                let depth = if depth.abs() < 1e-6 { 0.0 } else { depth };
+                let far = (depth > 0.0)
+                    .then(|| obstacle.solid.exit(&x, &-normal, reach * grid.dx))
+                    .flatten();
                 images.push(SolidImage {
                     node,
-                    depth: if depth.abs() < 1e-6 { 0.0 } else { depth },
+                    depth,
                     normal,
-                    contact_angle,
+                    contact_angle: obstacle.contact_angle,
+                    far_depth: far.map_or(f64::INFINITY, |(t, _)| t * grid.inv_dx),
+                    far_normal: far.map_or(Vector::<D>::zeros(), |(_, n)| n),
                 });
             }
         }
