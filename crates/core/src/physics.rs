@@ -266,6 +266,8 @@ pub struct PhysicsContext<'a, const D: usize> {
     pub interpolation: &'a Interpolation<D>,
     /// Particle data.
     pub particles: ParticleView<'a, D>,
+    /// The walls and obstacles (which cells are solid).
+    pub boundaries: &'a crate::boundary::Boundaries<D>,
     /// Shared scalar particle fields.
     pub fields: &'a mut ParticleFields,
     /// This operator's grid scratch arrays, one per [`PhysicsLaw::grid_arrays`], each one

@@ -117,6 +117,7 @@ impl Thermal {
             fields,
             scratch,
             report,
+            ..
         } = ctx;
         if dt <= 0.0 {
             return;

@@ -19,7 +19,11 @@
 //!   time is the `underfill_fill` table.
 //! - Viscosity: Newtonian, Cross or Castro–Macosko ([`Viscosity`]).
 //!
-//! Scene section: `physics.underfill` ([`UnderfillParameters`]).
+//! - Liquid as material points: the `liquid` material for incompressible mechanics, and
+//!   `physics.liquid_voids` ([`LiquidVoidsParameters`]), the air its particles enclose,
+//!   in the same `underfill_voids` table.
+//!
+//! Scene sections: `physics.underfill` ([`UnderfillParameters`]), `physics.liquid_voids`.
 
 mod banded;
 mod capillary_filling;
@@ -33,6 +37,7 @@ mod liquid;
 mod liquid_references;
 mod meniscus_reference;
 mod parameters;
+mod particle_voids;
 mod underfill;
 mod viscosity;
 mod voids;
@@ -44,6 +49,7 @@ pub use parameters::{
     Air, BumpArray, BumpPattern, FlowMode, Fluid, FluidSection, InitialFill, Reservoir,
     UnderfillParameters,
 };
+pub use particle_voids::{LiquidVoids, LiquidVoidsParameters};
 pub use underfill::{FILL_COLUMNS, FILL_TABLE, Underfill, VOIDS_TABLE};
 pub use viscosity::{CastroMacoskoParameters, CrossParameters, MAX_VISCOSITY, Viscosity};
 
@@ -62,7 +68,7 @@ impl Plugin for UnderfillPlugin {
     }
 
     fn description(&self) -> &'static str {
-        "capillary underfill flow in a thin gap: gap-averaged (Hele-Shaw) or resolved cross-section (Stokes), generalised Newtonian viscosity, solder bumps, trapped-air voids"
+        "capillary underfill flow in a thin gap: gap-averaged (Hele-Shaw) or resolved cross-section (Stokes), generalised Newtonian viscosity, solder bumps, trapped-air voids; the liquid particle material and the voids its particles enclose (liquid_voids)"
     }
 
     fn materials(&self) -> Vec<Box<dyn MaterialFactory>> {
@@ -70,7 +76,10 @@ impl Plugin for UnderfillPlugin {
     }
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
-        vec![Box::new(TypedPhysicsFactory::new("underfill", build))]
+        vec![
+            Box::new(TypedPhysicsFactory::new("underfill", build)),
+            Box::new(TypedPhysicsFactory::new("liquid_voids", build_liquid_voids)),
+        ]
     }
 
     fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
@@ -94,6 +103,18 @@ fn build(
     }
     let fluid = params.resolved_fluid(scene, &format!("{path}.fluid"))?;
     Ok(Arc::new(Underfill::new(params, fluid, scene)))
+}
+
+fn build_liquid_voids(
+    params: LiquidVoidsParameters,
+    path: &str,
+    scene: &Scene,
+) -> Result<Arc<dyn Physics>, Vec<Issue>> {
+    let issues = params.check(path, scene);
+    if !issues.is_empty() {
+        return Err(issues);
+    }
+    Ok(Arc::new(LiquidVoids::new(&params, scene)))
 }
 
 #[cfg(test)]

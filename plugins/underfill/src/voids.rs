@@ -1,11 +1,28 @@
-//! Voids: air regions the liquid has cut off from every vent. Each step the air cells (open
-//! and not full) are grouped into connected regions; a region with no vent cell is a void.
-//! A void keeps its identity from step to step through the cells it shares with the last
-//! step's void, and its trapped air may resist as an ideal gas (p·V constant).
+//! Voids: air regions the liquid has cut off from every vent. Each step the air cells are
+//! grouped into connected regions; a region with no vent cell is a void. A void keeps its
+//! identity from step to step through the cells it shares with the last step's void. The
+//! labelling works on any cells ([`AirCells`]): the gap-averaged lattice, whose trapped
+//! air may resist as an ideal gas (p·V constant), and the grid cells of liquid particles
+//! (`crate::particle_voids`).
 
 use crate::front::{CLOSED, EMPTY, FULL, FlowState};
 use crate::lattice::{DIRECTIONS, Lattice};
 use crate::parameters::Air;
+
+/// Cells whose air regions a [`VoidTracker`] labels.
+pub(crate) trait AirCells {
+    /// Number of cells.
+    fn len(&self) -> usize;
+    /// Whether cell `c` holds air.
+    fn is_air(&self, c: usize) -> bool;
+    /// Whether cell `c` touches a vent.
+    fn vented(&self, c: usize) -> bool;
+    /// The air of cell `c`: its measure (area in a plane scene, volume in 3D: what the
+    /// smallest void and the centroid are measured by), its volume, and its centre.
+    fn air(&self, c: usize) -> (f64, f64, [f64; 3]);
+    /// Calls `f` with each face neighbour of cell `c`.
+    fn for_each_neighbour(&self, c: usize, f: impl FnMut(usize));
+}
 
 const NONE: u32 = u32::MAX;
 
@@ -29,8 +46,8 @@ pub(crate) struct VoidRecord {
     pub id: u32,
     /// Time it was enclosed, s.
     pub closed_time: f64,
-    /// Centroid of its air, m.
-    pub centroid: [f64; 2],
+    /// Centroid of its air, m (z is 0 in 2D).
+    pub centroid: [f64; 3],
     /// Air area in the plane of the scene now, m² (0 once filled).
     pub area: f64,
     /// Air area when it closed, m².
@@ -95,7 +112,7 @@ struct Region {
     vented: bool,
     volume: f64,
     area: f64,
-    moment: [f64; 2],
+    moment: [f64; 3],
     previous: u32,
 }
 
@@ -111,8 +128,20 @@ impl VoidTracker {
         }
     }
 
-    /// Labels the air regions, updates the void records at `time` and sets the air gauge
-    /// pressure of every cell (ideal gas in voids when `gas` is set, else 0).
+    /// The void cell `c` belongs to since the last labelling, if any.
+    pub fn void_of(&self, c: usize) -> Option<u32> {
+        let id = self.void_of_cell[c];
+        (id != NONE).then_some(id)
+    }
+
+    /// Whether cell `c` held air at the last labelling.
+    pub fn was_air(&self, c: usize) -> bool {
+        self.region[c] != NONE
+    }
+
+    /// Labels the gap-averaged lattice's air regions, updates the void records at `time`
+    /// and sets the air gauge pressure of every cell (ideal gas in voids when `gas` is
+    /// set, else 0); with `gas`, void cells leave the flow (their fill stays).
     pub fn update(
         &mut self,
         lattice: &Lattice,
@@ -121,20 +150,44 @@ impl VoidTracker {
         air: &Air,
     ) -> AirSummary {
         let (ambient, gas) = (air.ambient_pressure, air.trapped_gas);
-        // Frozen void cells from the last step take part in the labelling again.
         let smallest = air.min_void_area.unwrap_or(2.0 * lattice.dx * lattice.dx);
-        let n = lattice.len();
-        let is_air =
-            |state: &FlowState, c: usize| state.state[c] != CLOSED && state.state[c] != FULL;
+        let summary = self.label(&GapCells { lattice, state }, time, smallest);
+        for record in self.records.iter_mut().filter(|r| r.filled_time.is_nan()) {
+            // Trapped gas is held at its enclosed volume: at capillary pressures (~kPa)
+            // against an ambient ~100 kPa an ideal gas would give up ~1% of it, and an
+            // explicit gas pressure would make the step follow the stiffness of the
+            // smallest void.
+            record.pressure = if gas && record.closed_volume > 0.0 {
+                let v = record.volume.max(1e-3 * record.closed_volume);
+                ambient * (record.closed_volume / v - 1.0)
+            } else {
+                0.0
+            };
+        }
+        for c in 0..lattice.len() {
+            if self.was_air(c) {
+                state.air[c] = 0.0;
+                if gas && self.void_of(c).is_some() {
+                    state.state[c] = EMPTY;
+                }
+            }
+        }
+        summary
+    }
+
+    /// Labels the air regions of `cells` and updates the void records at `time`: a region
+    /// without a vent is a void, the same one as a void it shares a cell with at the last
+    /// labelling, else a new one if its measure reaches `smallest`. Voids that lost all
+    /// their air (or merged into another) are marked filled.
+    pub fn label(&mut self, cells: &impl AirCells, time: f64, smallest: f64) -> AirSummary {
+        let n = cells.len();
         self.region.iter_mut().for_each(|r| *r = NONE);
         let mut summary = AirSummary::default();
         self.claimed.clear();
         self.claimed.resize(self.records.len(), false);
-        let area_of =
-            |c: usize, fill: f64| (1.0 - fill.min(1.0)) * lattice.open[c] * lattice.dx * lattice.dx;
         let mut label = 0u32;
         for start in 0..n {
-            if self.region[start] != NONE || !is_air(state, start) {
+            if self.region[start] != NONE || !cells.is_air(start) {
                 continue;
             }
             // Flood the region.
@@ -149,34 +202,30 @@ impl VoidTracker {
             while head < self.queue.len() {
                 let c = self.queue[head] as usize;
                 head += 1;
-                let fill = state.fill[c];
-                let a = area_of(c, fill);
+                let (a, v, x) = cells.air(c);
                 region.area += a;
-                region.volume += (1.0 - fill.min(1.0)) * lattice.volume(c);
-                let x = lattice.centre(c);
-                region.moment[0] += a * x[0];
-                region.moment[1] += a * x[1];
-                region.vented |= lattice.vented[c];
+                region.volume += v;
+                for (m, x) in region.moment.iter_mut().zip(x) {
+                    *m += a * x;
+                }
+                region.vented |= cells.vented(c);
                 let prev = self.void_of_cell[c];
                 if prev != NONE && region.previous == NONE && !self.claimed[prev as usize] {
                     region.previous = prev;
                 }
-                for (axis, upper) in DIRECTIONS {
-                    if let Some(nb) = lattice.neighbour(c, axis, upper)
-                        && self.region[nb] == NONE
-                        && is_air(state, nb)
-                    {
-                        self.region[nb] = label;
-                        self.queue.push(nb as u32);
+                let (region_of, queue) = (&mut self.region, &mut self.queue);
+                cells.for_each_neighbour(c, |nb| {
+                    if region_of[nb] == NONE && cells.is_air(nb) {
+                        region_of[nb] = label;
+                        queue.push(nb as u32);
                     }
-                }
+                });
             }
             if region.vented || (region.previous == NONE && region.area < smallest) {
-                // Vented, or enclosed below the grid's resolution (under two cells of air
-                // by default): not reported, offers no resistance.
+                // Vented, or enclosed below the resolution (under two cells of air by
+                // default): not reported.
                 summary.vented_volume += region.volume;
                 for &c in &self.queue {
-                    state.air[c as usize] = 0.0;
                     self.void_of_cell[c as usize] = NONE;
                 }
             } else {
@@ -189,7 +238,7 @@ impl VoidTracker {
                     self.records.push(VoidRecord {
                         id,
                         closed_time: time,
-                        centroid: [0.0; 2],
+                        centroid: [0.0; 3],
                         area: region.area,
                         closed_area: region.area,
                         volume: region.volume,
@@ -205,28 +254,10 @@ impl VoidTracker {
                 record.area = region.area;
                 record.volume = region.volume;
                 if region.area > 0.0 {
-                    record.centroid = [
-                        region.moment[0] / region.area,
-                        region.moment[1] / region.area,
-                    ];
+                    record.centroid = region.moment.map(|m| m / region.area);
                 }
-                // Trapped gas is held at its enclosed volume: at capillary pressures
-                // (~kPa) against an ambient ~100 kPa an ideal gas would give up ~1% of it,
-                // and an explicit gas pressure would make the step follow the stiffness of
-                // the smallest void. Its cells leave the flow (their fill stays).
-                record.pressure = if gas && record.closed_volume > 0.0 {
-                    let v = region.volume.max(1e-3 * record.closed_volume);
-                    ambient * (record.closed_volume / v - 1.0)
-                } else {
-                    0.0
-                };
                 for &c in &self.queue {
-                    let c = c as usize;
-                    state.air[c] = 0.0;
-                    self.void_of_cell[c] = id;
-                    if gas {
-                        state.state[c] = EMPTY;
-                    }
+                    self.void_of_cell[c as usize] = id;
                 }
                 summary.trapped_volume += region.volume;
                 summary.trapped_area += region.area;
@@ -250,5 +281,43 @@ impl VoidTracker {
             }
         }
         summary
+    }
+}
+
+/// The gap-averaged lattice's cells: air where open and not full.
+struct GapCells<'a> {
+    lattice: &'a Lattice,
+    state: &'a FlowState,
+}
+
+impl AirCells for GapCells<'_> {
+    fn len(&self) -> usize {
+        self.lattice.len()
+    }
+
+    fn is_air(&self, c: usize) -> bool {
+        self.state.state[c] != CLOSED && self.state.state[c] != FULL
+    }
+
+    fn vented(&self, c: usize) -> bool {
+        self.lattice.vented[c]
+    }
+
+    fn air(&self, c: usize) -> (f64, f64, [f64; 3]) {
+        let (lattice, empty) = (self.lattice, 1.0 - self.state.fill[c].min(1.0));
+        let [x, y] = lattice.centre(c);
+        (
+            empty * lattice.open[c] * lattice.dx * lattice.dx,
+            empty * lattice.volume(c),
+            [x, y, 0.0],
+        )
+    }
+
+    fn for_each_neighbour(&self, c: usize, mut f: impl FnMut(usize)) {
+        for (axis, upper) in DIRECTIONS {
+            if let Some(nb) = self.lattice.neighbour(c, axis, upper) {
+                f(nb);
+            }
+        }
     }
 }

@@ -189,6 +189,7 @@ where
                     groups: &self.group_views,
                     contact_field,
                 },
+                boundaries: &self.boundaries,
                 fields: shared,
                 scratch: &mut slot.scratch,
                 report: &mut self.report,

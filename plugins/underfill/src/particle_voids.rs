@@ -1,0 +1,365 @@
+//! Voids among liquid particles (`physics.liquid_voids`): each step the grid cells inside
+//! the domain that are neither solid (behind a wall, inside an obstacle) nor hold a liquid
+//! particle are air; air regions that touch no vent face are voids, reported in the same
+//! `underfill_voids` table as the gap-averaged mode. The incompressible projection takes
+//! air for free surface, so a void here does not resist: it records where and when the
+//! liquid closed around air, and when the air left (its cells filled or reached a vent).
+
+use crate::underfill::VOIDS_TABLE;
+use crate::voids::{AirCells, VOID_COLUMNS, VoidTracker};
+use mpm_core::physics::{PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
+use mpm_core::scene::{Issue, Mechanics, Scene, Side};
+use schemars::JsonSchema;
+use serde::Deserialize;
+use std::sync::Mutex;
+
+/// Columns of the `underfill_voids` table in a 3D scene (2D scenes use the gap-averaged
+/// mode's, with the area in the plane and the volume per metre of depth).
+const VOID_COLUMNS_3D: [&str; 9] = [
+    "id",
+    "closed_time",
+    "x",
+    "y",
+    "z",
+    "volume",
+    "closed_volume",
+    "pressure",
+    "filled_time",
+];
+
+/// Scene section `physics.liquid_voids`: air the liquid particles enclose.
+#[derive(Clone, Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LiquidVoidsParameters {
+    /// Materials whose particles are the liquid (default: every `liquid` material).
+    #[serde(default)]
+    pub materials: Vec<String>,
+    /// Domain faces open to the air: air that loses its path to all of them is a void.
+    /// Default: every face without a wall.
+    #[serde(default)]
+    pub vents: Option<Vec<Side>>,
+    /// Smallest enclosed air reported as a void, in cells (area in 2D, volume in 3D); a
+    /// cell or two without a particle inside moving liquid is not air.
+    #[serde(default = "default_min_void_cells")]
+    pub min_void_cells: f64,
+}
+
+fn default_min_void_cells() -> f64 {
+    4.0
+}
+
+impl LiquidVoidsParameters {
+    /// Every problem with the section, by JSON path below `path`.
+    pub fn check(&self, path: &str, scene: &Scene) -> Vec<Issue> {
+        let mut issues = Vec::new();
+        if !matches!(scene.solver.mechanics, Mechanics::Incompressible(_)) {
+            issues.push(Issue::new(
+                path.to_string(),
+                "voids among liquid particles need solver.mechanics incompressible (the gap-averaged mode finds its own, physics.underfill)",
+            ));
+        }
+        for (k, m) in self.materials.iter().enumerate() {
+            if !scene.materials.contains_key(m) {
+                issues.push(Issue::new(
+                    format!("{path}.materials[{k}]"),
+                    format!("no material named {m:?}"),
+                ));
+            }
+        }
+        if self.liquids(scene).is_empty() {
+            issues.push(Issue::new(
+                format!("{path}.materials"),
+                "the scene has no liquid material whose particles could enclose air",
+            ));
+        }
+        let dim = scene.dimension as usize;
+        for (k, side) in self.vents.iter().flatten().enumerate() {
+            if side.axis_and_upper().0 >= dim {
+                issues.push(Issue::new(
+                    format!("{path}.vents[{k}]"),
+                    format!("a {dim}D domain has no such face"),
+                ));
+            }
+        }
+        if !(self.min_void_cells.is_finite() && self.min_void_cells > 0.0) {
+            issues.push(Issue::new(
+                format!("{path}.min_void_cells"),
+                format!(
+                    "must be a finite number of cells > 0 (got {})",
+                    self.min_void_cells
+                ),
+            ));
+        }
+        issues
+    }
+
+    /// The liquid's materials: those named, or every `liquid` material of the scene.
+    fn liquids(&self, scene: &Scene) -> Vec<String> {
+        if !self.materials.is_empty() {
+            return self.materials.clone();
+        }
+        scene
+            .materials
+            .iter()
+            .filter(|(_, m)| m.get("type").and_then(|t| t.as_str()) == Some("liquid"))
+            .map(|(name, _)| name.clone())
+            .collect()
+    }
+}
+
+/// The operator: labels the air each step and keeps the void table.
+pub struct LiquidVoids {
+    liquids: Vec<String>,
+    vents: Vec<Side>,
+    min_void_cells: f64,
+    domain: ([f64; 3], [f64; 3]),
+    workspace: Mutex<Option<Workspace>>,
+}
+
+/// The cells and their labels, kept between steps.
+struct Workspace {
+    cells: GridCells,
+    tracker: VoidTracker,
+}
+
+impl LiquidVoids {
+    /// The operator for checked parameters of `scene`.
+    pub fn new(params: &LiquidVoidsParameters, scene: &Scene) -> Self {
+        let dim = scene.dimension as usize;
+        let walled: Vec<Side> = scene
+            .domain
+            .walls
+            .iter()
+            .flat_map(|w| w.sides.iter().copied())
+            .collect();
+        let vents = params.vents.clone().unwrap_or_else(|| {
+            [
+                Side::XMin,
+                Side::XMax,
+                Side::YMin,
+                Side::YMax,
+                Side::ZMin,
+                Side::ZMax,
+            ]
+            .into_iter()
+            .filter(|s| s.axis_and_upper().0 < dim && !walled.contains(s))
+            .collect()
+        });
+        let pick = |v: &[f64]| [0, 1, 2].map(|a| v.get(a).copied().unwrap_or(0.0));
+        Self {
+            liquids: params.liquids(scene),
+            vents,
+            min_void_cells: params.min_void_cells,
+            domain: (pick(&scene.domain.min), pick(&scene.domain.max)),
+            workspace: Mutex::new(None),
+        }
+    }
+
+    /// The grid's cells, with those outside the domain or solid marked closed and those on a
+    /// vent face marked vented.
+    fn cells<const D: usize>(&self, ctx: &PhysicsContext<'_, D>) -> GridCells {
+        let grid = ctx.grid;
+        let n = [0, 1, 2].map(|a| if a < D { grid.cells[a] } else { 1 });
+        let count = n.iter().product();
+        let mut cells = GridCells {
+            n,
+            dx: grid.dx,
+            origin: [0, 1, 2].map(|a| if a < D { grid.origin[a] } else { 0.0 }),
+            dimension: D,
+            closed: vec![false; count],
+            vented: vec![false; count],
+            liquid: vec![false; count],
+        };
+        for c in 0..count {
+            let ijk = cells.coords(c);
+            let centre = cells.centre(c);
+            let mut inside = true;
+            for (a, &at) in centre.iter().enumerate().take(D) {
+                let (lo, hi) = (self.domain.0[a], self.domain.1[a]);
+                if at < lo || at > hi {
+                    inside = false;
+                }
+                // A cell whose face lies on a vent face, within half a cell of it.
+                for (upper, face) in [(false, lo), (true, hi)] {
+                    let side = side_of(a, upper);
+                    if (at - face).abs() <= 0.5 * grid.dx * (1.0 + 1e-9)
+                        && self.vents.contains(&side)
+                    {
+                        cells.vented[c] = true;
+                    }
+                }
+            }
+            let mut x = mpm_core::math::Vector::<D>::zeros();
+            for a in 0..D {
+                x[a] = centre[a];
+            }
+            cells.closed[c] = !inside || ctx.boundaries.cell_is_solid(ijk, &x);
+        }
+        cells
+    }
+
+    fn update<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
+        let mut guard = self.workspace.lock().unwrap_or_else(|e| e.into_inner());
+        let ws = guard.get_or_insert_with(|| {
+            let cells = self.cells(&ctx);
+            let tracker = VoidTracker::new(cells.closed.len());
+            Workspace { cells, tracker }
+        });
+        ws.cells.liquid.fill(false);
+        let pv = &ctx.particles;
+        for g in pv.groups.iter().filter(|g| self.liquids.contains(&g.name)) {
+            for x in &pv.position[g.range.clone()] {
+                if let Some(c) = ws.cells.cell_of(x.as_slice()) {
+                    ws.cells.liquid[c] = true;
+                }
+            }
+        }
+        let cell_measure = ctx.grid.dx.powi(D as i32);
+        let summary = ws
+            .tracker
+            .label(&ws.cells, ctx.time, self.min_void_cells * cell_measure);
+        let report = &mut *ctx.report;
+        report.record_max("underfill.voids", summary.voids as f64);
+        report.record_max("underfill.trapped_air_volume", summary.trapped_volume);
+        if ws.tracker.records.is_empty() || !(summary.changed || summary.voids > 0) {
+            return;
+        }
+        let columns: &[&str] = if D == 3 {
+            &VOID_COLUMNS_3D
+        } else {
+            &VOID_COLUMNS
+        };
+        let table = report.table_mut(VOIDS_TABLE, columns);
+        table.rows.resize_with(ws.tracker.records.len(), Vec::new);
+        for (row, record) in table.rows.iter_mut().zip(&ws.tracker.records) {
+            if D == 3 {
+                row.clear();
+                row.extend_from_slice(&[
+                    record.id as f64,
+                    record.closed_time,
+                    record.centroid[0],
+                    record.centroid[1],
+                    record.centroid[2],
+                    record.volume,
+                    record.closed_volume,
+                    record.pressure,
+                    record.filled_time,
+                ]);
+            } else {
+                record.write_row(row);
+            }
+        }
+    }
+}
+
+fn side_of(axis: usize, upper: bool) -> Side {
+    match (axis, upper) {
+        (0, false) => Side::XMin,
+        (0, true) => Side::XMax,
+        (1, false) => Side::YMin,
+        (1, true) => Side::YMax,
+        (_, false) => Side::ZMin,
+        (_, true) => Side::ZMax,
+    }
+}
+
+/// The grid's cells as air, liquid or closed (solid or outside the domain).
+struct GridCells {
+    n: [usize; 3],
+    dx: f64,
+    origin: [f64; 3],
+    dimension: usize,
+    closed: Vec<bool>,
+    vented: Vec<bool>,
+    liquid: Vec<bool>,
+}
+
+impl GridCells {
+    fn coords(&self, c: usize) -> [usize; 3] {
+        [
+            c % self.n[0],
+            (c / self.n[0]) % self.n[1],
+            c / (self.n[0] * self.n[1]),
+        ]
+    }
+
+    fn index(&self, ijk: [usize; 3]) -> usize {
+        ijk[0] + self.n[0] * (ijk[1] + self.n[1] * ijk[2])
+    }
+
+    fn centre(&self, c: usize) -> [f64; 3] {
+        let ijk = self.coords(c);
+        [0, 1, 2].map(|a| {
+            if a < self.dimension {
+                self.origin[a] + (ijk[a] as f64 + 0.5) * self.dx
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// The cell holding position `x`, if on the grid.
+    fn cell_of(&self, x: &[f64]) -> Option<usize> {
+        let mut ijk = [0usize; 3];
+        for (a, &xa) in x.iter().enumerate() {
+            let s = ((xa - self.origin[a]) / self.dx).floor();
+            if !(s >= 0.0 && (s as usize) < self.n[a]) {
+                return None;
+            }
+            ijk[a] = s as usize;
+        }
+        Some(self.index(ijk))
+    }
+}
+
+impl AirCells for GridCells {
+    fn len(&self) -> usize {
+        self.closed.len()
+    }
+
+    fn is_air(&self, c: usize) -> bool {
+        !self.closed[c] && !self.liquid[c]
+    }
+
+    fn vented(&self, c: usize) -> bool {
+        self.vented[c]
+    }
+
+    fn air(&self, c: usize) -> (f64, f64, [f64; 3]) {
+        let measure = self.dx.powi(self.dimension as i32);
+        (measure, measure, self.centre(c))
+    }
+
+    fn for_each_neighbour(&self, c: usize, mut f: impl FnMut(usize)) {
+        let ijk = self.coords(c);
+        for a in 0..self.dimension {
+            let stride = [1, self.n[0], self.n[0] * self.n[1]][a];
+            if ijk[a] > 0 {
+                f(c - stride);
+            }
+            if ijk[a] + 1 < self.n[a] {
+                f(c + stride);
+            }
+        }
+    }
+}
+
+impl PhysicsLaw for LiquidVoids {
+    fn fields(&self) -> Vec<SharedFieldSpec> {
+        Vec::new()
+    }
+
+    fn hidden_state(&self) -> Option<&'static str> {
+        Some("its void labels and records")
+    }
+
+    fn needs_interpolation(&self) -> bool {
+        false
+    }
+
+    fn stage<const D: usize>(&self, stage: Stage, ctx: PhysicsContext<'_, D>) {
+        if matches!(stage, Stage::Initialise | Stage::Finish) {
+            self.update(ctx);
+        }
+    }
+}
