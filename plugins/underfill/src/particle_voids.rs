@@ -6,26 +6,12 @@
 //! liquid closed around air, and when the air left (its cells filled or reached a vent).
 
 use crate::underfill::VOIDS_TABLE;
-use crate::voids::{AirCells, VOID_COLUMNS, VoidTracker};
+use crate::voids::{AirCells, VOID_COLUMNS, VOID_COLUMNS_3D, VoidTracker};
 use mpm_core::physics::{PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
 use mpm_core::scene::{Issue, Mechanics, Scene, Side};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::sync::Mutex;
-
-/// Columns of the `underfill_voids` table in a 3D scene (2D scenes use the gap-averaged
-/// mode's, with the area in the plane and the volume per metre of depth).
-const VOID_COLUMNS_3D: [&str; 9] = [
-    "id",
-    "closed_time",
-    "x",
-    "y",
-    "z",
-    "volume",
-    "closed_volume",
-    "pressure",
-    "filled_time",
-];
 
 /// Scene section `physics.liquid_voids`: air the liquid particles enclose.
 #[derive(Clone, Debug, Deserialize, JsonSchema)]
@@ -233,18 +219,7 @@ impl LiquidVoids {
         table.rows.resize_with(ws.tracker.records.len(), Vec::new);
         for (row, record) in table.rows.iter_mut().zip(&ws.tracker.records) {
             if D == 3 {
-                row.clear();
-                row.extend_from_slice(&[
-                    record.id as f64,
-                    record.closed_time,
-                    record.centroid[0],
-                    record.centroid[1],
-                    record.centroid[2],
-                    record.volume,
-                    record.closed_volume,
-                    record.pressure,
-                    record.filled_time,
-                ]);
+                record.write_row_3d(row);
             } else {
                 record.write_row(row);
             }

@@ -39,6 +39,20 @@ pub(crate) const VOID_COLUMNS: [&str; 9] = [
     "filled_time",
 ];
 
+/// Columns of the `underfill_voids` table in a 3D scene (2D scenes use [`VOID_COLUMNS`],
+/// with the area in the plane and the volume per metre of depth).
+pub(crate) const VOID_COLUMNS_3D: [&str; 9] = [
+    "id",
+    "closed_time",
+    "x",
+    "y",
+    "z",
+    "volume",
+    "closed_volume",
+    "pressure",
+    "filled_time",
+];
+
 /// One void over its life.
 #[derive(Clone, Debug)]
 pub(crate) struct VoidRecord {
@@ -74,6 +88,22 @@ impl VoidRecord {
             self.area,
             self.closed_area,
             self.volume,
+            self.pressure,
+            self.filled_time,
+        ]);
+    }
+
+    /// Writes the 3D table row, in [`VOID_COLUMNS_3D`] order (the measure is the volume).
+    pub fn write_row_3d(&self, row: &mut Vec<f64>) {
+        row.clear();
+        row.extend_from_slice(&[
+            self.id as f64,
+            self.closed_time,
+            self.centroid[0],
+            self.centroid[1],
+            self.centroid[2],
+            self.volume,
+            self.closed_volume,
             self.pressure,
             self.filled_time,
         ]);
