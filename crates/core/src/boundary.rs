@@ -188,13 +188,15 @@ impl<const D: usize> Solid<D> {
         let step = reach / STEPS as f64;
         let outside = |t: f64| self.distance_and_normal(&(x + direction * t)).0 >= 0.0;
         let mut inside_at = 0.0;
-        let mut out_at = (1..=STEPS).map(|k| k as f64 * step).find(|&t| {
-            let out = outside(t);
-            if !out {
-                inside_at = t;
+        let mut out_at = None;
+        for t in (1..=STEPS).map(|k| k as f64 * step) {
+            if outside(t) {
+                out_at = Some(t);
+                break;
             }
-            out
-        })?;
+            inside_at = t;
+        }
+        let mut out_at = out_at?;
         for _ in 0..30 {
             let mid = 0.5 * (inside_at + out_at);
             if outside(mid) {

@@ -5,8 +5,7 @@
 //! air for free surface, so a void here does not resist: it records where and when the
 //! liquid closed around air, and when the air left (its cells filled or reached a vent).
 
-use crate::underfill::VOIDS_TABLE;
-use crate::voids::{AirCells, VOID_COLUMNS, VOID_COLUMNS_3D, VoidTracker};
+use crate::voids::{AirCells, VoidTracker};
 use mpm_core::physics::{PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
 use mpm_core::scene::{Issue, Mechanics, Scene, Side};
 use schemars::JsonSchema;
@@ -207,22 +206,8 @@ impl LiquidVoids {
         let report = &mut *ctx.report;
         report.record_max("underfill.voids", summary.voids as f64);
         report.record_max("underfill.trapped_air_volume", summary.trapped_volume);
-        if ws.tracker.records.is_empty() || !(summary.changed || summary.voids > 0) {
-            return;
-        }
-        let columns: &[&str] = if D == 3 {
-            &VOID_COLUMNS_3D
-        } else {
-            &VOID_COLUMNS
-        };
-        let table = report.table_mut(VOIDS_TABLE, columns);
-        table.rows.resize_with(ws.tracker.records.len(), Vec::new);
-        for (row, record) in table.rows.iter_mut().zip(&ws.tracker.records) {
-            if D == 3 {
-                record.write_row_3d(row);
-            } else {
-                record.write_row(row);
-            }
+        if summary.changed || summary.voids > 0 {
+            ws.tracker.write_table(report, D == 3);
         }
     }
 }

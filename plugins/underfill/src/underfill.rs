@@ -7,7 +7,7 @@ use crate::front::{FULL_AT, FlowState};
 use crate::hele_shaw::{self, HeleShawWork};
 use crate::lattice::{self, Lattice, LatticeInput};
 use crate::parameters::{FlowMode, Fluid, InitialFill, UnderfillParameters};
-use crate::voids::{VOID_COLUMNS, VoidTracker};
+use crate::voids::VoidTracker;
 use mpm_core::physics::{PhysicsContext, PhysicsFault, PhysicsLaw, SharedFieldSpec, Stage};
 use mpm_core::scene::{Scene, Side};
 use std::sync::Mutex;
@@ -329,13 +329,7 @@ impl Underfill {
             ws.fill_time = Some(time);
             report.record_max("underfill.fill_time", time);
         }
-        if !ws.voids.records.is_empty() {
-            let table = report.table_mut(VOIDS_TABLE, &VOID_COLUMNS);
-            table.rows.resize_with(ws.voids.records.len(), Vec::new);
-            for (row, record) in table.rows.iter_mut().zip(&ws.voids.records) {
-                record.write_row(row);
-            }
-        }
+        ws.voids.write_table(report, false);
         if fill - ws.logged_fill >= 2e-3 || air.voids != ws.logged_voids || just_filled {
             ws.logged_fill = fill;
             ws.logged_voids = air.voids;

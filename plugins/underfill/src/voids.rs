@@ -8,6 +8,8 @@
 use crate::front::{CLOSED, EMPTY, FULL, FlowState};
 use crate::lattice::{DIRECTIONS, Lattice};
 use crate::parameters::Air;
+use crate::underfill::VOIDS_TABLE;
+use mpm_core::physics::PhysicsReport;
 
 /// Cells whose air regions a [`VoidTracker`] labels.
 pub(crate) trait AirCells {
@@ -77,36 +79,20 @@ pub(crate) struct VoidRecord {
 }
 
 impl VoidRecord {
-    /// Writes the table row, in [`VOID_COLUMNS`] order, into `row` (reusing its storage).
-    pub fn write_row(&self, row: &mut Vec<f64>) {
+    /// Writes the table row into `row` (reusing its storage): in [`VOID_COLUMNS`] order in
+    /// a plane scene, in [`VOID_COLUMNS_3D`] order (centroid z, the volume as the measure)
+    /// when `three_d`.
+    pub fn write_row(&self, row: &mut Vec<f64>, three_d: bool) {
+        let [x, y, z] = self.centroid;
+        let place_and_size = if three_d {
+            [x, y, z, self.volume, self.closed_volume]
+        } else {
+            [x, y, self.area, self.closed_area, self.volume]
+        };
         row.clear();
-        row.extend_from_slice(&[
-            self.id as f64,
-            self.closed_time,
-            self.centroid[0],
-            self.centroid[1],
-            self.area,
-            self.closed_area,
-            self.volume,
-            self.pressure,
-            self.filled_time,
-        ]);
-    }
-
-    /// Writes the 3D table row, in [`VOID_COLUMNS_3D`] order (the measure is the volume).
-    pub fn write_row_3d(&self, row: &mut Vec<f64>) {
-        row.clear();
-        row.extend_from_slice(&[
-            self.id as f64,
-            self.closed_time,
-            self.centroid[0],
-            self.centroid[1],
-            self.centroid[2],
-            self.volume,
-            self.closed_volume,
-            self.pressure,
-            self.filled_time,
-        ]);
+        row.extend_from_slice(&[self.id as f64, self.closed_time]);
+        row.extend_from_slice(&place_and_size);
+        row.extend_from_slice(&[self.pressure, self.filled_time]);
     }
 }
 
@@ -155,6 +141,24 @@ impl VoidTracker {
             queue: Vec::with_capacity(n),
             records: Vec::new(),
             claimed: Vec::new(),
+        }
+    }
+
+    /// Writes every void so far into the `underfill_voids` table of `report` (a row per
+    /// void, rewritten while it lives; nothing before the first void).
+    pub fn write_table(&self, report: &mut PhysicsReport, three_d: bool) {
+        if self.records.is_empty() {
+            return;
+        }
+        let columns: &[&str] = if three_d {
+            &VOID_COLUMNS_3D
+        } else {
+            &VOID_COLUMNS
+        };
+        let table = report.table_mut(VOIDS_TABLE, columns);
+        table.rows.resize_with(self.records.len(), Vec::new);
+        for (row, record) in table.rows.iter_mut().zip(&self.records) {
+            record.write_row(row, three_d);
         }
     }
 
