@@ -672,6 +672,16 @@ pub fn run_case(case: &Case, registry: &Registry) -> CaseResult {
             result.pass = false;
             result.note = wrong.join("; ");
         }
+    } else if result.outcome == "stopped" && result.pass {
+        // A case that must stop may also say why it must (its own diagnostic, not another).
+        match case.check.map(|check| check(&metrics, &frames)) {
+            Some(Ok(figure)) => result.note = figure,
+            Some(Err(e)) => {
+                result.pass = false;
+                result.note = e;
+            }
+            None => {}
+        }
     }
     result
 }

@@ -31,7 +31,8 @@ pub struct Case {
     pub scene: Value,
     /// The outcome it must have.
     pub expected: Expected,
-    /// A physics check of its own on the finished run's frames (the peer cases').
+    /// A physics check of its own on the finished run's frames (the peer cases'), or on a
+    /// stopped run's, for a case that must stop (why it stopped).
     pub check: Option<Check>,
 }
 

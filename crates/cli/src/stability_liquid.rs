@@ -1,6 +1,7 @@
 //! The stability suite's liquid-particle cases (`solver.mechanics.incompressible`): a
 //! collapsing column from water to a paste at one step (implicit viscosity), menisci at the
-//! extreme contact angles, and a drop of a single particle with surface tension.
+//! extreme contact angles, a drop of a single particle with surface tension, and liquid
+//! let into a closed box past what it holds.
 
 use crate::stability_case::{Case, Expected, Frames};
 use mpm_core::output::Metrics;
@@ -62,6 +63,53 @@ fn single_particle_drop() -> Value {
                     "velocity": {"uniform": [DRIFT, 0.0]}}],
         "output": {"frames": 2, "fields": ["x", "v"]}
     })
+}
+
+/// A closed box 10 mm square (1 mm cells, slip walls, gravity) that water enters through a
+/// 2 mm inlet in its left wall at 5e-4 m²/s for 0.4 s: the box holds 1e-4 m², full at
+/// 0.2 s.
+fn full_box() -> Value {
+    json!({
+        "name": "liquid-inflow-full-box", "dimension": 2,
+        "domain": {"min": [0, 0], "max": [0.01, 0.01], "cell_size": 0.001,
+                   "walls": [{"sides": ["x-", "x+", "y-", "y+"], "condition": "slip"}]},
+        "solver": {"end_time": 0.4, "kernel": "bspline2", "transfer": "apic", "cfl": 0.5,
+                   "gravity": [0, -9.81], "mechanics": {"incompressible": {}}},
+        "materials": {"water": {"type": "liquid", "density": 1000.0,
+                                "viscosity": {"newtonian": 0.001}}},
+        "bodies": [{"name": "inlet", "material": "water",
+                    "shape": {"inflow": {"center": [0.0005, 0.002], "direction": [1, 0],
+                                         "width": 0.002, "rate": 5e-4}}}],
+        "output": {"frames": 8, "fields": ["x", "v", "injected"]}
+    })
+}
+
+/// The full box: the run stopped because the inflow had nowhere to go (not for a failed
+/// solve), in the step the first layer that does not fit is due (between 0.19 and 0.21 s;
+/// a step is a few ms), with no particle out of the box.
+fn full_box_check(m: &Metrics, frames: &Frames) -> Result<String, String> {
+    let message = m
+        .diagnostic
+        .as_ref()
+        .map(|d| d.message.clone())
+        .unwrap_or_default();
+    if !message.contains("nowhere to go") {
+        return Err(format!("stopped for another reason: {message}"));
+    }
+    if !(0.19..=0.21).contains(&m.simulated_time) {
+        return Err(format!(
+            "stopped at {:.4} s; the box is full at 0.2 s",
+            m.simulated_time
+        ));
+    }
+    let (_, inside) = largest_speed(frames, [0.01, 0.01])?;
+    if !inside {
+        return Err("a particle left the box".into());
+    }
+    Ok(format!(
+        "stopped at {:.4} s (full at 0.2 s): the inflow has nowhere to go",
+        m.simulated_time
+    ))
 }
 
 /// The largest particle speed over the frames, and whether every particle stayed inside
@@ -174,6 +222,13 @@ pub fn cases() -> Vec<Case> {
             scene: single_particle_drop(),
             expected: Expected::Finished,
             check: Some(drop_check),
+        },
+        Case {
+            name: "liquid-inflow-full-box",
+            what: "water let into a closed box past what it holds (full at 0.2 s of 0.4 s)",
+            scene: full_box(),
+            expected: Expected::Stopped,
+            check: Some(full_box_check),
         },
     ]
 }

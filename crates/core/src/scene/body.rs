@@ -1,4 +1,4 @@
-//! The `bodies` section: a shape (box, sphere, cylinder, particle file) filled with
+//! The `bodies` section: a shape (box, sphere, cylinder, particle file, inflow) filled with
 //! particles of one material, its holes and initial velocity; the types and their checks.
 //! The particles themselves are generated in `body_particles`.
 
@@ -74,6 +74,9 @@ pub enum Shape {
         /// File format.
         format: ParticleFileFormat,
     },
+    /// Liquid that enters through an inlet at a set flow rate (incompressible mechanics
+    /// only): the particles wait at the inlet without mass until their layer enters.
+    Inflow(super::inflow::Inflow),
 }
 
 /// Formats a particle file can have.
@@ -151,6 +154,8 @@ impl Shape {
                     v.err(format!("{path}.file.path"), "must not be empty");
                 }
             }
+            // Checked with its body (it needs the spacing and the scene).
+            Shape::Inflow(_) => {}
         }
     }
 }
@@ -177,7 +182,33 @@ impl Body {
             );
         }
         self.shape.validate(v, &format!("{path}.shape"));
+        if let Shape::Inflow(inflow) = &self.shape {
+            let h = s.domain.cell_size / f64::from(self.particles_per_cell.clamp(1, 8));
+            inflow.validate(v, &format!("{path}.shape.inflow"), s, h);
+            if !self.holes.is_empty() {
+                v.err(format!("{path}.holes"), "an inflow body has no holes");
+            }
+            if self.velocity.is_some() {
+                v.err(
+                    format!("{path}.velocity"),
+                    "an inflow sets its particles' velocity as they enter: remove this",
+                );
+            }
+            if self.clip_to_domain {
+                v.err(
+                    format!("{path}.clip_to_domain"),
+                    "an inflow's inlet lies inside the domain: remove this",
+                );
+            }
+        }
         for (k, hole) in self.holes.iter().enumerate() {
+            if matches!(hole, Shape::Inflow(_)) {
+                v.err(
+                    format!("{path}.holes[{k}]"),
+                    "a hole is a box, sphere or cylinder",
+                );
+                continue;
+            }
             hole.validate(v, &format!("{path}.holes[{k}]"));
         }
         match &self.velocity {

@@ -106,13 +106,20 @@ impl Validator {
                         }
                     }
                 }
+                Shape::Inflow(inflow) => {
+                    // Every particle waits at the inlet without volume (so without mass)
+                    // until its layer enters (`solver/inflow.rs`).
+                    body.positions = inflow.positions(dim, h, s.solver.end_time);
+                    body.volumes = vec![0.0; body.positions.len() / dim];
+                    Ok(())
+                }
             };
             if let Err(message) = filled {
                 self.err(format!("{path}.shape"), message);
                 continue;
             }
             for (h_index, hole) in b.holes.iter().enumerate() {
-                if matches!(hole, Shape::File { .. }) {
+                if matches!(hole, Shape::File { .. } | Shape::Inflow(_)) {
                     self.err(
                         format!("{path}.holes[{h_index}]"),
                         "a hole is a box, sphere or cylinder",
@@ -223,7 +230,7 @@ fn shape_contains(shape: &Shape, x: &[f64]) -> bool {
             let r2: f64 = r.map(|a| a * a).sum::<f64>() - along * along;
             along.abs() <= length / 2.0 && r2 <= radius * radius
         }
-        Shape::File { .. } => false,
+        Shape::File { .. } | Shape::Inflow(_) => false,
     }
 }
 

@@ -161,7 +161,7 @@ fn well_formed(dim: usize, shape: &Shape) -> bool {
                 && length.is_finite()
                 && *length > 0.0
         }
-        Shape::File { .. } => false,
+        Shape::File { .. } | Shape::Inflow(_) => false,
     }
 }
 
@@ -210,7 +210,7 @@ fn shape_cost(dim: usize, shape: &Shape, h: f64, region: &Region) -> (f64, f64) 
             let volume = std::f64::consts::PI * radius * radius * length;
             (points, points.min(volume / h.powi(3)))
         }
-        Shape::File { .. } => (0.0, 0.0),
+        Shape::File { .. } | Shape::Inflow(_) => (0.0, 0.0),
     }
 }
 
@@ -244,7 +244,10 @@ pub fn estimate(s: &Scene) -> Estimate {
     for b in &s.bodies {
         let h = dx / f64::from(b.particles_per_cell.clamp(1, 8));
         let region = body_region(&domain, dx, b.clip_to_domain);
-        let (points, particles) = if well_formed(dim, &b.shape) && spacings_ok(dim, &b.shape, h) {
+        let (points, particles) = if let Shape::Inflow(inflow) = &b.shape {
+            let n = inflow.particle_estimate(dim, h, s.solver.end_time);
+            (n, n)
+        } else if well_formed(dim, &b.shape) && spacings_ok(dim, &b.shape, h) {
             shape_cost(dim, &b.shape, h, &region)
         } else {
             (0.0, 0.0)
@@ -431,7 +434,7 @@ fn reach_issue(
             format!("{path}.cylinder.center[{axis}]")
         }
         Shape::Cylinder { .. } => format!("{path}.cylinder"),
-        Shape::File { .. } => return None,
+        Shape::File { .. } | Shape::Inflow(_) => return None,
     };
     Some(Issue::new(
         at,

@@ -215,7 +215,7 @@ impl ContactSection {
                     format!("{path}.precrack"),
                     "only a `cohesive` law has a precrack",
                 ),
-                (Some(Shape::File { .. }), _) => v.err(
+                (Some(Shape::File { .. } | Shape::Inflow(_)), _) => v.err(
                     format!("{path}.precrack"),
                     "a precrack is a box, sphere or cylinder",
                 ),

@@ -30,7 +30,8 @@ impl Region {
 /// their precision in f64 (and no grid could hold the particles anyway).
 pub(crate) const MAX_SPACINGS: f64 = 1e12;
 
-/// The axis-aligned bounding box of a box, sphere or cylinder (`None` for a file).
+/// The axis-aligned bounding box of a box, sphere or cylinder (`None` for a file or an
+/// inflow, which check their own extent).
 pub(crate) fn bounding_box(dim: usize, shape: &Shape) -> Option<Region> {
     let mut r = Region {
         lo: [0.0; 3],
@@ -61,7 +62,7 @@ pub(crate) fn bounding_box(dim: usize, shape: &Shape) -> Option<Region> {
                 r.hi[a] = center[a] + reach;
             }
         }
-        Shape::File { .. } => return None,
+        Shape::File { .. } | Shape::Inflow(_) => return None,
     }
     Some(r)
 }

@@ -11,6 +11,7 @@ mod body_particles;
 mod budget;
 mod contact;
 mod domain;
+mod inflow;
 mod lattice;
 mod obstacle;
 mod output;
@@ -24,6 +25,7 @@ pub use body_particles::{BodyParticles, read_csv_particles};
 pub use budget::{Estimate, Limits, estimate};
 pub use contact::{CohesiveLaw, ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};
 pub use domain::{Contact, Domain, Side, Wall};
+pub use inflow::{INJECTED, Inflow, InflowLayout};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, Output, StopCriteria};
 pub use solver_settings::{

@@ -439,6 +439,12 @@ impl Validator {
         if s.contact.as_ref().is_some_and(|c| c.has_cohesive()) {
             known.insert(INTERFACE_DAMAGE);
         }
+        if s.bodies
+            .iter()
+            .any(|b| matches!(b.shape, super::Shape::Inflow(_)))
+        {
+            known.insert(super::INJECTED);
+        }
         for (_, p) in physics {
             for f in p.fields() {
                 known.insert(f.name);

@@ -148,6 +148,15 @@ where
             }
             particles.groups.last_mut().unwrap().range.end = start + count;
         }
+        let inflow = super::incompressible::inflow::Inflows::<D>::new(v, &output_index);
+        if let Some(inflow) = &inflow {
+            let spec = crate::physics::SharedFieldSpec {
+                name: crate::scene::INJECTED,
+                initial: 1.0,
+            };
+            particles.shared.add(spec, n);
+            inflow.mark_waiting(&mut particles);
+        }
         for group in &mut particles.groups {
             let count = group.range.len();
             group.state = group
@@ -259,6 +268,7 @@ where
             stress_scratch: StressScratch::default(),
             physics_dt: f64::INFINITY,
             relax_time: None,
+            inflow,
             sort_counter: 0,
             contact,
             mode: Some(super::mode::for_scene(s.solver.mechanics, fbar)),

@@ -97,6 +97,8 @@ pub struct Simulation<const D: usize, K: Kernel> {
     /// What a staged run adds to every checkpoint's state (`stage`: the stage's index and
     /// the summaries of the stages before); `Null` outside staged runs.
     pub(super) stage_tag: serde_json::Value,
+    /// Liquid entering through inlets (`inflow` bodies; incompressible mode only).
+    pub(super) inflow: Option<super::incompressible::inflow::Inflows<D>>,
     /// The time-integration mode (taken out while it advances the simulation).
     pub(super) mode: Option<Box<dyn StepMode<D, K>>>,
     pub(super) _kernel: std::marker::PhantomData<K>,

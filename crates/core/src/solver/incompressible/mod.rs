@@ -25,8 +25,9 @@
 //!    (extrapolated, as PIC/FLIP/APIC liquid solvers extrapolate the projected velocity
 //!    into the air), not free fall. Then the walls and obstacles again, so no liquid
 //!    crosses them.
-//! 4. G2P (velocities, positions, velocity gradient), physics, viscous stress; the nodal
-//!    pressure is interpolated to the particles' `pressure` field.
+//! 4. G2P (velocities, positions, velocity gradient); liquid enters through the inlets of
+//!    `inflow` bodies (inflow.rs); physics, viscous stress; the nodal pressure is
+//!    interpolated to the particles' `pressure` field.
 //!
 //! Equal-order velocity/pressure on one grid is not inf-sup stable for the coupled
 //! problem, but the fractional step is: its compact Laplacian ∫∇N·∇N differs from the
@@ -39,6 +40,7 @@
 //! viscous stress out and a backward-Euler viscous solve on the grid (viscosity.rs) acts
 //! between steps 1 and 2; the viscous bound then goes.
 
+pub(super) mod inflow;
 mod surface_tension;
 mod viscosity;
 
@@ -56,6 +58,10 @@ use crate::math::{Matrix, Vector};
 use crate::physics::PhysicsFault;
 use crate::scene::{IncompressibleSettings, Transfer, ViscousIntegration};
 use surface_tension::SurfaceTension;
+
+/// Share of a cell's excess particle volume the pressure equation removes per step in
+/// scenes with an inflow (inflow.rs).
+const VOLUME_CORRECTION: f64 = 0.2;
 
 /// Corners of a cell (2^D, at most 8).
 const MAX_CORNERS: usize = 8;
@@ -263,12 +269,14 @@ where
         }
         self.project(sim, dt);
         self.incremental_pressure(&sim.grid);
+        inflow::park(sim);
         sim.g2p(dt, true, true, true);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
         // particle volume stays its reference volume and F cannot degenerate.
         sim.particles
             .deformation_gradient
             .fill(Matrix::<D>::identity());
+        inflow::enter(sim, dt);
         sim.advance_physics(dt, true);
         for group in &sim.particles.groups {
             group.material.forget_viscosity_bound();
@@ -399,6 +407,24 @@ impl<const D: usize> Incompressible<D> {
                     }
                 }
                 self.rhs[base + self.corner_offset[a]] += flux / dt;
+            }
+        }
+        // With inlets, cells inside the liquid (no corner on the free surface) whose
+        // particle volume differs from their own give or take the difference within the
+        // step (inflow.rs).
+        if sim.inflow.is_some() {
+            let capacity = sim.grid.dx.powi(D as i32);
+            let share = VOLUME_CORRECTION / (corners as f64 * dt * dt);
+            for c in 0..self.cell_volume.len() {
+                let base = self.cell_node[c];
+                let inside =
+                    (0..corners).all(|a| self.inverse_diagonal[base + self.corner_offset[a]] > 0.0);
+                let excess = self.cell_volume[c] - capacity;
+                if self.cell_volume[c] > 0.0 && (inside || excess > 0.0) {
+                    for a in 0..corners {
+                        self.rhs[base + self.corner_offset[a]] += excess * share;
+                    }
+                }
             }
         }
         for (x, free) in self.pressure.iter_mut().zip(&self.inverse_diagonal) {
