@@ -206,9 +206,11 @@ where
         sim.inflow = Some(inflows);
         return;
     }
-    let injected = shared
-        .get_mut(INJECTED)
-        .expect("scenes with an inflow allocate `injected`");
+    let Some(injected) = shared.get_mut(INJECTED) else {
+        // Set-up allocates it with the inflows; nothing can enter without it.
+        sim.inflow = Some(inflows);
+        return;
+    };
     for &(i, _) in &inflows.parked {
         let Some(plan) = inflows.plan_of(id[i]) else {
             continue;
