@@ -13,8 +13,9 @@ use super::validator::Validator;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-/// Particle field of scenes with an inflow body: 1 for a particle in the liquid, 0 for
-/// one still waiting at its inlet (no mass; left out of every sum).
+/// Particle field of scenes with an inflow body or `outflow`: 1 for a particle in the
+/// liquid, 0 for one still waiting at its inlet, −1 for one that left through an open
+/// face (both without mass, left out of every sum).
 pub const INJECTED: &str = "injected";
 
 /// An inlet that liquid particles enter through at a set volume flow rate.

@@ -155,6 +155,12 @@ pub struct IncompressibleSettings {
     /// no viscous bound on the step.
     #[serde(default)]
     pub viscosity: ViscousIntegration,
+    /// Liquid that crosses a domain face without a wall leaves the run (its particles
+    /// stop on the face without mass, `injected` = −1; the volume gone is the physics
+    /// figure `incompressible.outflow_volume`) instead of stopping it as a particle that
+    /// left the grid: the vents of a mould, the open end of a channel.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub outflow: bool,
 }
 
 impl Default for IncompressibleSettings {
@@ -163,6 +169,7 @@ impl Default for IncompressibleSettings {
             tolerance: default_pressure_tolerance(),
             max_iterations: default_pressure_iterations(),
             viscosity: ViscousIntegration::default(),
+            outflow: false,
         }
     }
 }

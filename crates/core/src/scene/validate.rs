@@ -217,6 +217,23 @@ impl Validator {
         }
         s.domain.validate(self);
         s.solver.validate(self);
+        if let super::Mechanics::Incompressible(settings) = &s.solver.mechanics {
+            let mut walled: Vec<super::Side> = s
+                .domain
+                .walls
+                .iter()
+                .flat_map(|w| w.sides.clone())
+                .collect();
+            walled.sort_by_key(|side| *side as usize);
+            walled.dedup();
+            if settings.outflow && walled.len() >= 2 * self.dim {
+                self.err(
+                    "solver.mechanics.incompressible.outflow",
+                    "every domain face has a wall: no liquid can leave (take a side out of \
+                     domain.walls, or remove this)",
+                );
+            }
+        }
         if s.materials.is_empty() {
             self.err("materials", "at least one material is needed");
         }
@@ -439,9 +456,14 @@ impl Validator {
         if s.contact.as_ref().is_some_and(|c| c.has_cohesive()) {
             known.insert(INTERFACE_DAMAGE);
         }
-        if s.bodies
-            .iter()
-            .any(|b| matches!(b.shape, super::Shape::Inflow(_)))
+        let outflow = matches!(
+            s.solver.mechanics,
+            super::Mechanics::Incompressible(super::IncompressibleSettings { outflow: true, .. })
+        );
+        if outflow
+            || s.bodies
+                .iter()
+                .any(|b| matches!(b.shape, super::Shape::Inflow(_)))
         {
             known.insert(super::INJECTED);
         }

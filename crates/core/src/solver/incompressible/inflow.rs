@@ -53,9 +53,12 @@ struct Plan<const D: usize> {
     mass: f64,
 }
 
-/// The scene's inflows and the step's waiting places.
+/// The scene's inlets (inflow bodies) and outlets (open faces with `outflow`), and the
+/// step's waiting places.
 pub(in crate::solver) struct Inflows<const D: usize> {
     plans: Vec<Plan<D>>,
+    /// The open faces liquid leaves through (outflow.rs), with `outflow` on.
+    pub(super) outlets: Option<super::outflow::Outlets>,
     /// Waiting particles (index, place) before G2P, put back after it.
     parked: Vec<(usize, Vector<D>)>,
     /// Volume of the domain's open cells, measured on the first step.
@@ -63,8 +66,8 @@ pub(in crate::solver) struct Inflows<const D: usize> {
 }
 
 impl<const D: usize> Inflows<D> {
-    /// The inflows of a validated scene (`None` without any); `first_id[b]` is the first
-    /// particle id of body `b`.
+    /// The inlets and outlets of a validated scene (`None` without either); `first_id[b]`
+    /// is the first particle id of body `b`.
     pub(in crate::solver) fn new(v: &ValidatedScene, first_id: &[usize]) -> Option<Self> {
         let s = &v.scene;
         let plans: Vec<Plan<D>> = v
@@ -95,11 +98,18 @@ impl<const D: usize> Inflows<D> {
                 })
             })
             .collect();
-        (!plans.is_empty()).then(|| Self {
+        let outlets = super::outflow::Outlets::new(s, D);
+        (!plans.is_empty() || outlets.is_some()).then(|| Self {
             plans,
+            outlets,
             parked: Vec::new(),
             open_volume: None,
         })
+    }
+
+    /// Whether liquid enters anywhere (the pressure equation's volume source is for them).
+    pub(super) fn has_inlets(&self) -> bool {
+        !self.plans.is_empty()
     }
 
     /// Sets `injected` to 0 for every inflow particle (setup: they all start waiting).
@@ -167,11 +177,20 @@ where
         shared,
         ..
     } = &mut sim.particles;
+    let Some(injected) = shared.get_mut(INJECTED) else {
+        // Set-up allocates it with the inflows; nothing can enter without it.
+        sim.inflow = Some(inflows);
+        return;
+    };
     let mut entering = 0.0;
     let mut due = 0usize;
     for &(i, x) in &inflows.parked {
         position[i] = x;
         velocity[i] = Vector::<D>::zeros();
+        // Particles that left through an outlet (−1) never come back.
+        if injected[i] != 0.0 {
+            continue;
+        }
         if let Some(plan) = inflows.plan_of(id[i]) {
             let layer = (id[i] - plan.first_id) as usize / plan.layout.offsets.len();
             if plan.layout.entry_time(layer) <= now {
@@ -206,12 +225,10 @@ where
         sim.inflow = Some(inflows);
         return;
     }
-    let Some(injected) = shared.get_mut(INJECTED) else {
-        // Set-up allocates it with the inflows; nothing can enter without it.
-        sim.inflow = Some(inflows);
-        return;
-    };
     for &(i, _) in &inflows.parked {
+        if injected[i] != 0.0 {
+            continue;
+        }
         let Some(plan) = inflows.plan_of(id[i]) else {
             continue;
         };

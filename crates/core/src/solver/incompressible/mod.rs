@@ -26,8 +26,9 @@
 //!    into the air), not free fall. Then the walls and obstacles again, so no liquid
 //!    crosses them.
 //! 4. G2P (velocities, positions, velocity gradient); liquid enters through the inlets of
-//!    `inflow` bodies (inflow.rs); physics, viscous stress; the nodal pressure is
-//!    interpolated to the particles' `pressure` field.
+//!    `inflow` bodies (inflow.rs) and, with `outflow`, leaves through the open domain faces
+//!    (outflow.rs); physics, viscous stress; the nodal pressure is interpolated to the
+//!    particles' `pressure` field.
 //!
 //! Equal-order velocity/pressure on one grid is not inf-sup stable for the coupled
 //! problem, but the fractional step is: its compact Laplacian ∫∇N·∇N differs from the
@@ -41,6 +42,7 @@
 //! between steps 1 and 2; the viscous bound then goes.
 
 pub(super) mod inflow;
+mod outflow;
 mod surface_tension;
 mod viscosity;
 
@@ -277,6 +279,7 @@ where
             .deformation_gradient
             .fill(Matrix::<D>::identity());
         inflow::enter(sim, dt);
+        outflow::leave(sim);
         sim.advance_physics(dt, true);
         for group in &sim.particles.groups {
             group.material.forget_viscosity_bound();
@@ -412,7 +415,7 @@ impl<const D: usize> Incompressible<D> {
         // With inlets, cells inside the liquid (no corner on the free surface) whose
         // particle volume differs from their own give or take the difference within the
         // step (inflow.rs).
-        if sim.inflow.is_some() {
+        if sim.inflow.as_ref().is_some_and(|f| f.has_inlets()) {
             let capacity = sim.grid.dx.powi(D as i32);
             let share = VOLUME_CORRECTION / (corners as f64 * dt * dt);
             for c in 0..self.cell_volume.len() {
