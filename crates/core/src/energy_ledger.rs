@@ -23,11 +23,14 @@ pub struct EnergyLedger {
     pub friction: f64,
     /// Energy the cohesive interfaces dissipated as they softened.
     pub cohesive: f64,
+    /// Mechanical energy (kinetic + gravity potential) liquid brought in through inlets
+    /// less what it carried out through open faces, at the crossing.
+    pub openings: f64,
 }
 
 impl EnergyLedger {
     /// The entries in declaration order (for checkpoints).
-    pub fn to_array(&self) -> [f64; 6] {
+    pub fn to_array(&self) -> [f64; 7] {
         [
             self.boundaries,
             self.free_strain,
@@ -35,11 +38,12 @@ impl EnergyLedger {
             self.plastic,
             self.friction,
             self.cohesive,
+            self.openings,
         ]
     }
 
     /// The ledger whose [`EnergyLedger::to_array`] is `a`.
-    pub fn from_array(a: [f64; 6]) -> Self {
+    pub fn from_array(a: [f64; 7]) -> Self {
         let [
             boundaries,
             free_strain,
@@ -47,6 +51,7 @@ impl EnergyLedger {
             plastic,
             friction,
             cohesive,
+            openings,
         ] = a;
         Self {
             boundaries,
@@ -55,12 +60,14 @@ impl EnergyLedger {
             plastic,
             friction,
             cohesive,
+            openings,
         }
     }
 
-    /// Net energy the ledger explains: work done on the bodies less all dissipation.
+    /// Net energy the ledger explains: work done on the bodies and energy carried in by
+    /// liquid, less all dissipation.
     pub fn net_input(&self) -> f64 {
-        self.boundaries + self.free_strain - self.dissipated()
+        self.boundaries + self.free_strain + self.openings - self.dissipated()
     }
 
     /// Everything dissipated by a physical cause.

@@ -416,16 +416,12 @@ impl<const D: usize> Incompressible<D> {
         // particle volume differs from their own give or take the difference within the
         // step (inflow.rs).
         if sim.inflow.as_ref().is_some_and(|f| f.has_inlets()) {
-            let capacity = sim.grid.dx.powi(D as i32);
-            let share = VOLUME_CORRECTION / (corners as f64 * dt * dt);
+            let share = 1.0 / (corners as f64 * dt * dt);
             for c in 0..self.cell_volume.len() {
-                let base = self.cell_node[c];
-                let inside =
-                    (0..corners).all(|a| self.inverse_diagonal[base + self.corner_offset[a]] > 0.0);
-                let excess = self.cell_volume[c] - capacity;
-                if self.cell_volume[c] > 0.0 && (inside || excess > 0.0) {
+                if let Some(volume) = self.volume_source(c, sim.grid.dx) {
+                    let base = self.cell_node[c];
                     for a in 0..corners {
-                        self.rhs[base + self.corner_offset[a]] += excess * share;
+                        self.rhs[base + self.corner_offset[a]] += volume * share;
                     }
                 }
             }
@@ -515,6 +511,20 @@ impl<const D: usize> Incompressible<D> {
             }
         }
         apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// The volume cell `c` is to give (or take, negative) in this step in a scene with
+    /// inlets: the share `VOLUME_CORRECTION` of the difference between its particles'
+    /// volume and its own, in cells inside the liquid (every corner a pressure unknown),
+    /// and only what it holds too much in cells on the free surface (inflow.rs).
+    fn volume_source(&self, c: usize, dx: f64) -> Option<f64> {
+        let corners = 1 << D;
+        let base = self.cell_node[c];
+        let inside =
+            (0..corners).all(|a| self.inverse_diagonal[base + self.corner_offset[a]] > 0.0);
+        let excess = self.cell_volume[c] - dx.powi(D as i32);
+        (self.cell_volume[c] > 0.0 && (inside || excess > 0.0))
+            .then_some(VOLUME_CORRECTION * excess)
     }
 
     /// With implicit viscosity the projection solved for the pressure increment: adds the

@@ -81,6 +81,8 @@ where
     let Some(outlets) = sim.inflow.as_ref().and_then(|f| f.outlets.as_ref()) else {
         return;
     };
+    let gravity = sim.settings.gravity;
+    let (kinematics, ledger) = (&mut sim.kinematics, &mut sim.ledger);
     let Particles {
         position,
         velocity,
@@ -97,7 +99,14 @@ where
     };
     let mut gone = 0.0;
     for (i, flag) in injected.iter_mut().enumerate() {
+        let x = position[i];
         if *flag > 0.5 && outlets.crossed(&mut position[i]) {
+            // Out of the step's statistics (taken before it left) and off the books.
+            let (m, v) = (mass[i], velocity[i]);
+            kinematics.kinetic_energy -= 0.5 * m * v.norm_squared();
+            kinematics.gravity_energy += m * gravity.dot(&x);
+            kinematics.momentum -= v * m;
+            ledger.openings -= m * (0.5 * v.norm_squared() - gravity.dot(&x));
             gone += volume0[i];
             *flag = -1.0;
             mass[i] = 0.0;
