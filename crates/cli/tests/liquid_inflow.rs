@@ -118,7 +118,7 @@ fn liquid_leaves_through_an_open_face_and_the_volumes_add_up() {
 
 #[test]
 fn an_inflow_is_refused_where_it_cannot_work() {
-    let cases: [(&[&str], &str, &str); 7] = [
+    let cases: [(&[&str], &str, &str); 8] = [
         (
             &["solver.mechanics=\"dynamic\""],
             "bodies[1].shape.inflow",
@@ -156,6 +156,13 @@ fn an_inflow_is_refused_where_it_cannot_work() {
             ],
             "solver.mechanics.incompressible.outflow",
             "every domain face has a wall",
+        ),
+        (
+            &[
+                r#"stages=[{"name":"fill","changes":{}},{"name":"more","changes":{"solver":{"end_time":0.8}},"remove":{"field":"injected","below":0.5}}]"#,
+            ],
+            "stages[1].remove",
+            "cannot remove particles",
         ),
     ];
     for (overrides, path, words) in cases {

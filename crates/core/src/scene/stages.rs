@@ -223,6 +223,20 @@ fn check_hand_over(
         return issues;
     };
     let at = format!("{path}.remove");
+    if scene
+        .scene
+        .bodies
+        .iter()
+        .any(|b| matches!(b.shape, super::Shape::Inflow(_)))
+    {
+        // The inflow schedule reads each particle's place from its id, which removal
+        // renumbers.
+        issues.push(Issue::new(
+            at.clone(),
+            "a scene with an inflow body cannot remove particles between stages (removal \
+             renumbers the particles the inflow's schedule counts)",
+        ));
+    }
     match before {
         None => issues.push(Issue::new(
             at.clone(),
