@@ -181,6 +181,20 @@ fn incompressible_liquid_resumes_bit_for_bit() {
 }
 
 #[test]
+fn liquid_entering_and_leaving_resumes_bit_for_bit() {
+    // Resumed while the inlet still lets liquid in and the open right face lets it out.
+    resumed_equals_uninterrupted(
+        "liquid-inflow-tank.json",
+        &[
+            "solver.end_time=0.3",
+            r#"domain.walls=[{"sides":["x-","y-"],"condition":"slip"}]"#,
+            r#"solver.mechanics={"incompressible":{"outflow":true}}"#,
+        ],
+        50,
+    );
+}
+
+#[test]
 fn a_staged_run_resumes_in_its_stage_bit_for_bit() {
     // The cure/cool/cycles chain with a checkpoint every 50 steps: the latest is in the
     // `cycles` stage; the resumed run writes that stage on and keeps the earlier stages'

@@ -29,8 +29,9 @@ pub struct EnergyLedger {
 }
 
 impl EnergyLedger {
-    /// The entries in declaration order (for checkpoints).
-    pub fn to_array(&self) -> [f64; 7] {
+    /// The entries in declaration order but `openings` (for checkpoints, which keep
+    /// `openings` apart so that those written before it existed still restore).
+    pub fn to_array(&self) -> [f64; 6] {
         [
             self.boundaries,
             self.free_strain,
@@ -38,12 +39,11 @@ impl EnergyLedger {
             self.plastic,
             self.friction,
             self.cohesive,
-            self.openings,
         ]
     }
 
-    /// The ledger whose [`EnergyLedger::to_array`] is `a`.
-    pub fn from_array(a: [f64; 7]) -> Self {
+    /// The ledger whose [`EnergyLedger::to_array`] is `a` (`openings` 0).
+    pub fn from_array(a: [f64; 6]) -> Self {
         let [
             boundaries,
             free_strain,
@@ -51,7 +51,6 @@ impl EnergyLedger {
             plastic,
             friction,
             cohesive,
-            openings,
         ] = a;
         Self {
             boundaries,
@@ -60,7 +59,7 @@ impl EnergyLedger {
             plastic,
             friction,
             cohesive,
-            openings,
+            openings: 0.0,
         }
     }
 

@@ -99,6 +99,7 @@ where
             relax,
         ]);
         s.push(&self.ledger.to_array());
+        c.put("ledger.openings", vec![self.ledger.openings]);
         let k = &self.kinematics;
         s.push(&[k.kinetic_energy]);
         s.push(k.momentum.as_slice());
@@ -149,6 +150,8 @@ where
         self.physics_dt = physics_dt;
         self.relax_time = (!relax.is_nan()).then_some(relax);
         self.ledger = crate::energy_ledger::EnergyLedger::from_array(s.take_n()?);
+        // Absent from checkpoints written before inlets existed.
+        self.ledger.openings = c.get("ledger.openings", 1).map_or(0.0, |v| v[0]);
         self.restore_statistics(&mut s)?;
         self.stress_scratch.restore(c)?;
         if let Some(r) = &mut self.reference {
