@@ -73,15 +73,20 @@ pub enum Command {
         #[arg(long)]
         stage: Option<String>,
     },
-    /// Draw one frame of a 2D result store as a PNG picture (for documentation).
+    /// Draw one frame of a result store as a PNG picture (for documentation).
     ///
     /// The particles are squares of their spacing, coloured by a field (viridis, NaN grey)
     /// with a colour bar, on equal axes in m, mm or µm; the title names the scene, the field
-    /// and the time. With --voids, the voids listed in a table of the store's metrics
-    /// (columns x, y, area in m², optional id) are marked as red circles: e.g. the fill
-    /// pattern of an underfill between a chip and its substrate with the trapped air.
+    /// and the time. A 3D store is seen along one axis (--plane), the nearest particles on
+    /// top, whole or a slab of it (--slab). Particles an inlet has not let in yet, or that
+    /// left through an open face (`injected` 0 or -1), are not drawn. With --voids, the voids
+    /// listed in a table of the store's metrics (columns x, y, area in m² in 2D; x, y, z,
+    /// volume in m³ in 3D, drawn as the circle of the sphere of that volume; optional id)
+    /// are marked as red circles, only those open at the frame's time when the table has
+    /// closed_time and filled_time: e.g. the fill pattern of an underfill between a chip
+    /// and its substrate with the trapped air.
     Render {
-        /// Result store (`results/<name>.zarr`) of a 2D run.
+        /// Result store (`results/<name>.zarr`) of a 2D or 3D run.
         store: PathBuf,
         /// Particle field to colour by: a scalar, or a vector or tensor with --component.
         #[arg(long)]
@@ -104,6 +109,12 @@ pub enum Command {
         /// Stage of a staged run's store (its name; default: the last stage).
         #[arg(long)]
         stage: Option<String>,
+        /// The two axes a 3D store is drawn on: xy (seen along z, the default), xz or yz.
+        #[arg(long)]
+        plane: Option<String>,
+        /// Draw only the particles of a 3D store whose third coordinate lies in LO:HI (m).
+        #[arg(long, value_name = "LO:HI", allow_hyphen_values = true)]
+        slab: Option<String>,
     },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
@@ -382,6 +393,8 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             title,
             voids,
             stage,
+            plane,
+            slab,
         } => {
             let r = crate::render::render(&crate::render::RenderArgs {
                 store,
@@ -392,6 +405,8 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 title,
                 voids,
                 stage,
+                plane,
+                slab,
             })?;
             let voids = r
                 .voids

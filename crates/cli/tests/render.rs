@@ -1,6 +1,6 @@
 //! `mpm render` end to end: a short 2D run drawn as a PNG (with and without a voids table
 //! in the store's metrics), and the errors for a missing field, a frame out of range, an
-//! unwritable output and a 3D store.
+//! unwritable output, and the views of a 3D store.
 
 mod common;
 
@@ -172,7 +172,21 @@ fn render_refuses_missing_fields_frames_outputs_and_3d_stores() {
     );
     assert!(!dir.path().join("n.png").exists());
 
-    // A 3D store: the cube drop, shrunk to 27 particles and two steps.
+    refused(
+        &["--field", "temperature", "--slab", "0:1", "--out", "n.png"],
+        &["a 2D store has no depth"],
+    );
+    refused(
+        &["--field", "temperature", "--plane", "xz", "--out", "n.png"],
+        &["only the xy plane"],
+    );
+    assert!(!dir.path().join("n.png").exists());
+}
+
+#[test]
+fn render_draws_a_3d_store_seen_along_an_axis_whole_or_a_slab() {
+    let dir = tempfile::tempdir().unwrap();
+    // The cube drop, shrunk to 8 x 8 x 8 particles and two steps.
     let cube = run_example(
         dir.path(),
         "cube-drop",
@@ -180,18 +194,44 @@ fn render_refuses_missing_fields_frames_outputs_and_3d_stores() {
             "solver.end_time=0.0002",
             "output.frames=1",
             "domain.cell_size=0.0625",
-            "bodies[0].shape.box.max=[0.4,0.4,0.4]",
+            "bodies[0].shape.box.max=[0.55,0.55,0.55]",
         ],
     );
+    let drawn = |args: &[&str]| -> (String, usize) {
+        let mut all = vec!["render", cube.as_str(), "--field", "v", "--component", "1"];
+        all.extend(args);
+        let o = mpm(&all, dir.path());
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {t}");
+        // "wrote c.png (frame 1, t = ... s, N particles, ...)"
+        let n = t
+            .split(" particles")
+            .next()
+            .and_then(|head| head.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no particle count in: {t}"));
+        (t, n)
+    };
+    let (_, all) = drawn(&["--out", "c.png"]);
+    assert!(all > 100, "{all}");
+    assert!(png_size(&dir.path().join("c.png")).0 > 200);
+    let (_, side) = drawn(&["--plane", "xz", "--out", "side.png"]);
+    assert_eq!(side, all);
+    assert_ne!(
+        std::fs::read(dir.path().join("c.png")).unwrap(),
+        std::fs::read(dir.path().join("side.png")).unwrap(),
+        "another plane is another picture"
+    );
+    // A slab of two of the cube's eight particle layers.
+    let (t, slab) = drawn(&["--plane", "xz", "--slab", "0.4:0.45", "--out", "slab.png"]);
+    assert!(slab > 0 && 3 * slab < all, "{slab} of {all}: {t}");
     let o = mpm(
-        &["render", &cube, "--field", "v", "--out", "c.png"],
+        &[
+            "render", &cube, "--field", "v", "--slab", "0.3:0.2", "--out", "bad.png",
+        ],
         dir.path(),
     );
-    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(
-        text(&o).contains("render draws 2D stores only"),
-        "{}",
-        text(&o)
-    );
-    assert!(!dir.path().join("c.png").exists());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(text(&o).contains("LO:HI"), "{}", text(&o));
+    assert!(!dir.path().join("bad.png").exists());
 }

@@ -131,6 +131,8 @@ fn frame_pictures_are_pngs_for_their_owner_and_json_errors_otherwise() {
         format!("/v1/jobs/{bar}/frames/-1.png"),
         format!("/v1/jobs/{bar}/frames/2?field=v&component=1"),
         format!("/v1/jobs/{bar}/frames/4.png?field=stress"),
+        // A 3D store, seen along z.
+        format!("/v1/jobs/{cube}/frames/0?field=v&component=2"),
     ] {
         let (status, kind, body) = get(&path, ALICE);
         assert_eq!(status, 200, "{path}: {}", String::from_utf8_lossy(&body));
@@ -168,7 +170,11 @@ fn frame_pictures_are_pngs_for_their_owner_and_json_errors_otherwise() {
             400,
             "bad_frame",
         ),
-        (format!("/v1/jobs/{cube}/frames/0"), 422, "cannot_render"),
+        (
+            format!("/v1/jobs/{cube}/frames/0?field=v&component=3"),
+            422,
+            "cannot_render",
+        ),
         (
             "/v1/jobs/00000000-0000-0000-0000-000000000000/frames/0".to_string(),
             404,
@@ -180,10 +186,10 @@ fn frame_pictures_are_pngs_for_their_owner_and_json_errors_otherwise() {
         assert_eq!(got, status, "{path}: {}", String::from_utf8_lossy(&body));
         assert_eq!(error_code(&body), code, "{path}");
     }
-    // A 3D store is named as such; the server's folders are not.
-    let (_, _, body) = get(&format!("/v1/jobs/{cube}/frames/0"), ALICE);
+    // The reason names the field; the server's folders are not named.
+    let (_, _, body) = get(&format!("/v1/jobs/{cube}/frames/0?field=nope"), ALICE);
     let text = String::from_utf8_lossy(&body);
-    assert!(text.contains("2D stores only"), "{text}");
+    assert!(text.contains("field `nope`"), "{text}");
     assert!(!text.contains(&dir.path().display().to_string()), "{text}");
 
     // Another user's job is as unknown as a missing one; no token is a 401.

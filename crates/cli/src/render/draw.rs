@@ -27,6 +27,8 @@ pub(super) struct Picture<'a> {
     pub(super) label: &'a str,
     /// Voids to mark.
     pub(super) voids: &'a [Void],
+    /// Names of the axes drawn across and up.
+    pub(super) axes: [&'a str; 2],
 }
 
 /// Long side of the plot area, px.
@@ -85,8 +87,8 @@ pub(super) fn draw(path: &Path, p: &Picture) -> anyhow::Result<()> {
         .disable_mesh()
         .x_labels((plot_w / 90).clamp(2, 12) as usize)
         .y_labels((plot_h / 60).clamp(2, 12) as usize)
-        .x_desc(format!("x, {unit}"))
-        .y_desc(format!("y, {unit}"))
+        .x_desc(format!("{}, {unit}", p.axes[0]))
+        .y_desc(format!("{}, {unit}", p.axes[1]))
         .x_label_formatter(&|v| short(*v))
         .y_label_formatter(&|v| short(*v))
         .label_style(("sans-serif", 14))
@@ -125,7 +127,7 @@ pub(super) fn draw(path: &Path, p: &Picture) -> anyhow::Result<()> {
     let red = RGBColor(220, 20, 20);
     for void in p.voids {
         let (cx, cy) = to_px(void.x, void.y);
-        let radius = ((void.area / std::f64::consts::PI).sqrt() * sx).max(3.0);
+        let radius = (void.radius * sx).max(3.0);
         let centre = (cx.round() as i32, cy.round() as i32);
         root.draw(&Circle::new(
             centre,

@@ -4,12 +4,16 @@
 use serde_json::Value;
 use std::collections::HashMap;
 
-/// The scene's domain box `[xmin, xmax, ymin, ymax]`, when the store records it.
-pub(super) fn domain(attributes: &serde_json::Map<String, Value>) -> Option<[f64; 4]> {
+/// The scene's domain box `[min, max, min, max]` along the picture's two `axes`, when the
+/// store records it.
+pub(super) fn domain(
+    attributes: &serde_json::Map<String, Value>,
+    axes: [usize; 2],
+) -> Option<[f64; 4]> {
     let d = attributes.get("scene")?.get("domain")?;
     let corner = |key: &str| -> Option<(f64, f64)> {
         let c = d.get(key)?.as_array()?;
-        Some((c.first()?.as_f64()?, c.get(1)?.as_f64()?))
+        Some((c.get(axes[0])?.as_f64()?, c.get(axes[1])?.as_f64()?))
     };
     let (min, max) = (corner("min")?, corner("max")?);
     let b = [min.0, max.0, min.1, max.1];
@@ -48,57 +52,72 @@ pub(super) fn picture_bounds(
 }
 
 /// Estimated particle spacing: the median distance to the nearest other particle, over up
-/// to 2000 particles, found with a bucket grid. `None` for fewer than two distinct points.
-pub(crate) fn particle_spacing(points: &[(f64, f64)]) -> Option<f64> {
+/// to 2000 particles, found with a bucket grid, in the particles' own dimension `N` (a 3D
+/// run seen along an axis stacks particles on one another in the picture). `None` for fewer
+/// than two distinct points.
+pub(crate) fn particle_spacing<const N: usize>(points: &[[f64; N]]) -> Option<f64> {
     let n = points.len();
     if n < 2 {
         return None;
     }
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &(x, y) in points {
-        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    let mut low = [f64::MAX; N];
+    let mut high = [f64::MIN; N];
+    for p in points {
+        for a in 0..N {
+            low[a] = low[a].min(p[a]);
+            high[a] = high[a].max(p[a]);
+        }
     }
-    let (w, h) = (x1 - x0, y1 - y0);
-    let cell = if w * h > 0.0 {
-        (w * h / n as f64).sqrt()
-    } else {
-        w.max(h) / (n - 1) as f64
+    // Bucket side: the spacing the particles would have if they filled their box, over the
+    // axes along which they spread.
+    let spread: Vec<f64> = (0..N)
+        .map(|a| high[a] - low[a])
+        .filter(|e| *e > 0.0)
+        .collect();
+    let volume: f64 = spread.iter().product();
+    let cell = match spread.len() {
+        0 => return None,
+        1 => spread[0] / (n - 1) as f64,
+        k => (volume / n as f64).powf(1.0 / k as f64),
     };
     if cell.is_nan() || cell <= 0.0 {
         return None;
     }
-    let key = |(x, y): (f64, f64)| {
-        (
-            ((x - x0) / cell).floor() as i64,
-            ((y - y0) / cell).floor() as i64,
-        )
+    let key = |p: &[f64; N]| -> [i64; N] {
+        std::array::from_fn(|a| ((p[a] - low[a]) / cell).floor() as i64)
     };
-    let mut buckets: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    for (i, &p) in points.iter().enumerate() {
+    let mut buckets: HashMap<[i64; N], Vec<usize>> = HashMap::new();
+    for (i, p) in points.iter().enumerate() {
         buckets.entry(key(p)).or_default().push(i);
     }
-    // Rings of buckets around a particle, nearest first; a point in ring r + 1 is at least
+    // Shells of buckets around a particle, nearest first; a point in shell r + 1 is at least
     // r cells away, so the search stops once the nearest found is closer than that.
     const MAX_RING: i64 = 64;
     let mut nearest = Vec::new();
     for i in (0..n).step_by((n / 2000).max(1)) {
-        let p = points[i];
-        let (cx, cy) = key(p);
+        let p = &points[i];
+        let centre = key(p);
         let mut best = f64::INFINITY;
         for r in 0..=MAX_RING {
-            for dx in -r..=r {
-                let edge = dx.abs() == r;
-                let dys: Vec<i64> = if edge {
-                    (-r..=r).collect()
-                } else {
-                    vec![-r, r]
-                };
-                for dy in dys {
-                    for &j in buckets.get(&(cx + dx, cy + dy)).into_iter().flatten() {
-                        let d = (points[j].0 - p.0).hypot(points[j].1 - p.1);
-                        if j != i && d > 0.0 && d < best {
-                            best = d;
-                        }
+            let side = (2 * r + 1) as usize;
+            for flat in 0..side.pow(N as u32) {
+                let mut rest = flat;
+                let offset: [i64; N] = std::array::from_fn(|_| {
+                    let o = (rest % side) as i64 - r;
+                    rest /= side;
+                    o
+                });
+                if offset.iter().all(|o| o.abs() != r) {
+                    continue; // inside the shell: searched at a smaller r
+                }
+                let b: [i64; N] = std::array::from_fn(|a| centre[a] + offset[a]);
+                for &j in buckets.get(&b).into_iter().flatten() {
+                    let d = (0..N)
+                        .map(|a| (points[j][a] - p[a]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    if j != i && d > 0.0 && d < best {
+                        best = d;
                     }
                 }
             }
@@ -125,21 +144,36 @@ mod tests {
     fn spacing_is_the_lattice_spacing() {
         // A 40 x 8 lattice of spacing 0.25 mm with a few holes, shuffled order.
         let h = 2.5e-4;
-        let mut points: Vec<(f64, f64)> = (0..320)
+        let mut points: Vec<[f64; 2]> = (0..320)
             .filter(|i| i % 17 != 3)
-            .map(|i| ((i % 40) as f64 * h + 0.5 * h, (i / 40) as f64 * h + 0.5 * h))
+            .map(|i| [(i % 40) as f64 * h + 0.5 * h, (i / 40) as f64 * h + 0.5 * h])
             .collect();
         points.reverse();
         let s = particle_spacing(&points).unwrap();
         assert!((s - h).abs() < 1e-9 * h, "{s}");
         // A row of particles; two far apart clusters.
-        let row: Vec<(f64, f64)> = (0..10).map(|i| (i as f64 * 0.1, 0.0)).collect();
+        let row: Vec<[f64; 2]> = (0..10).map(|i| [i as f64 * 0.1, 0.0]).collect();
         assert!((particle_spacing(&row).unwrap() - 0.1).abs() < 1e-12);
-        let mut two: Vec<(f64, f64)> = (0..50).map(|i| (i as f64 * 1e-3, 0.0)).collect();
-        two.extend((0..50).map(|i| (10.0 + i as f64 * 1e-3, 5.0)));
+        let mut two: Vec<[f64; 2]> = (0..50).map(|i| [i as f64 * 1e-3, 0.0]).collect();
+        two.extend((0..50).map(|i| [10.0 + i as f64 * 1e-3, 5.0]));
         assert!((particle_spacing(&two).unwrap() - 1e-3).abs() < 1e-9);
-        assert_eq!(particle_spacing(&[(1.0, 1.0)]), None);
-        assert_eq!(particle_spacing(&[(1.0, 1.0), (1.0, 1.0)]), None);
+        assert_eq!(particle_spacing(&[[1.0, 1.0]]), None);
+        assert_eq!(particle_spacing(&[[1.0, 1.0], [1.0, 1.0]]), None);
+        // A 3D lattice 20 x 10 x 3, spacing 0.1 mm, jittered along z by a hundredth of it:
+        // seen along z its points nearly coincide, in 3D the spacing is the lattice's.
+        let h = 1e-4;
+        let cube: Vec<[f64; 3]> = (0..600)
+            .map(|i| {
+                let (x, y, z) = (i % 20, (i / 20) % 10, i / 200);
+                [
+                    x as f64 * h,
+                    y as f64 * h,
+                    z as f64 * h + 1e-6 * (x % 3) as f64,
+                ]
+            })
+            .collect();
+        let s = particle_spacing(&cube).unwrap();
+        assert!((s - h).abs() < 1e-3 * h, "{s}");
     }
 
     #[test]

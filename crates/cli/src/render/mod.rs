@@ -1,12 +1,14 @@
-//! `mpm render`: one frame of a 2D result store as a PNG picture of the particles coloured
-//! by a field (equal axes, a viridis colour bar), for documentation pictures; optionally
-//! with the voids of a table in the store's metrics marked as red circles.
+//! `mpm render`: one frame of a result store as a PNG picture of the particles coloured
+//! by a field (equal axes, a viridis colour bar), for documentation pictures; a 3D store
+//! seen along an axis, whole or a slab of it; optionally with the voids of a table in the
+//! store's metrics marked as red circles.
 
 mod colour;
 mod draw;
 mod geometry;
 mod labels;
 mod service;
+mod view;
 mod voids;
 
 pub(crate) use labels::short;
@@ -20,6 +22,7 @@ use geometry::{domain, particle_spacing, picture_bounds};
 use mpm_io::ResultStore;
 use serde_json::Value;
 use std::path::PathBuf;
+use view::View;
 use voids::parse_voids;
 
 /// What to draw, as given on the command line.
@@ -41,6 +44,10 @@ pub(crate) struct RenderArgs {
     pub voids: Option<String>,
     /// Stage of a staged run's store (default: the last).
     pub stage: Option<String>,
+    /// The two axes a 3D store is drawn on (`xy`, `xz`, `yz`; default `xy`).
+    pub plane: Option<String>,
+    /// `LO:HI`: keep the particles of a 3D store whose third coordinate lies there, m.
+    pub slab: Option<String>,
 }
 
 /// What was drawn.
@@ -76,12 +83,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
     let store = ResultStore::open_stage(&args.store, args.stage.as_deref())
         .with_context(|| format!("cannot open result store `{}`", args.store.display()))?;
     let dim = store.dimension();
-    if dim != 2 {
-        return Err(input_error!(
-            "render draws 2D stores only; `{}` holds a {dim}D run",
-            args.store.display()
-        ));
-    }
+    let view = View::parse(args.plane.as_deref(), args.slab.as_deref(), dim)?;
     let fields = store.fields()?;
     if !fields.contains(&args.field) {
         return Err(input_error!(
@@ -103,7 +105,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
     let time = times[k as usize];
 
     let (_, positions) = store.frame("x", k)?;
-    let n = positions.len() / 2;
+    let n = positions.len() / dim;
     let (shape, values) = store.frame(&args.field, k)?;
     let components: usize = shape.iter().skip(1).product::<u64>() as usize;
     if shape.first().copied() != Some(n as u64) || values.len() != n * components {
@@ -125,23 +127,37 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         args.field.clone()
     };
 
-    let mut points = Vec::with_capacity(n);
-    let mut scalar = Vec::with_capacity(n);
-    for p in 0..n {
-        let (x, y) = (positions[2 * p], positions[2 * p + 1]);
-        if x.is_finite() && y.is_finite() {
-            points.push((x, y));
-            scalar.push(values[p * components + args.component]);
-        }
-    }
+    // Particles an inlet has not let in yet, or that left through an open face, wait
+    // massless where they are (`injected` 0 and −1): not drawn.
+    let injected = if fields.iter().any(|f| f == "injected") {
+        Some(store.frame("injected", k)?.1)
+    } else {
+        None
+    };
+    let in_run = |p: usize| {
+        injected
+            .as_ref()
+            .is_none_or(|s| s.get(p).is_some_and(|v| *v > 0.5))
+    };
+    let (points, drawn) = view.project(&positions, dim, in_run);
+    let scalar: Vec<f64> = drawn
+        .iter()
+        .map(|&p| values[p * components + args.component])
+        .collect();
 
     let voids = match &args.voids {
         None => None,
-        Some(table) => match parse_voids(store.attributes().get("metrics"), table) {
+        Some(table) => match parse_voids(
+            store.attributes().get("metrics"),
+            table,
+            [view.axis_name(0), view.axis_name(1)],
+            dim,
+            time,
+        ) {
             Ok(t) => {
                 if t.skipped > 0 {
                     eprintln!(
-                        "warning: {} row(s) of table `{table}` lack a finite x, y or area; not drawn",
+                        "warning: {} row(s) of table `{table}` lack a finite centre or size; not drawn",
                         t.skipped
                     );
                 }
@@ -166,18 +182,29 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "result".into())
         });
-    let mut title = args
-        .title
-        .clone()
-        .unwrap_or_else(|| format!("{scene} — {label} at t = {} s", short(time)));
+    let mut title = args.title.clone().unwrap_or_else(|| {
+        let view = view.caption().map(|c| format!(", {c}")).unwrap_or_default();
+        format!("{scene} — {label} at t = {} s{view}", short(time))
+    });
     if let Some(v) = &voids {
         let noun = if v.len() == 1 { "void" } else { "voids" };
         title = format!("{title}, {} {noun}", v.len());
     }
 
-    let spacing = particle_spacing(&points);
-    let bounds = picture_bounds(&points, domain(attributes), spacing.unwrap_or(0.0))
-        .context("nothing to draw: no particle positions and no domain in the store")?;
+    // The squares' side is the spacing in the run's own dimension: seen along an axis, a 3D
+    // run's particles lie on one another in the picture.
+    let spacing = if dim == 3 {
+        let at = |p: usize| -> [f64; 3] { std::array::from_fn(|a| positions[3 * p + a]) };
+        particle_spacing(&drawn.iter().map(|&p| at(p)).collect::<Vec<_>>())
+    } else {
+        particle_spacing(&points.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>())
+    };
+    let bounds = picture_bounds(
+        &points,
+        domain(attributes, view.axes),
+        spacing.unwrap_or(0.0),
+    )
+    .context("nothing to draw: no particle positions and no domain in the store")?;
     let spacing = spacing.unwrap_or_else(|| {
         let (w, h) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
         (w * h / points.len().max(1) as f64).sqrt()
@@ -195,6 +222,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         title: &title,
         label: &label,
         voids: voids.as_deref().unwrap_or(&[]),
+        axes: [view.axis_name(0), view.axis_name(1)],
     };
     if let Err(e) = draw(&args.out, &picture) {
         let _ = std::fs::remove_file(&args.out);

@@ -30,6 +30,8 @@ impl FrameRenderer for ServiceRenderer {
             title: None,
             voids: None,
             stage: None,
+            plane: None,
+            slab: None,
         };
         let drawn = render(&args);
         let bytes = std::fs::read(&out);

@@ -1,4 +1,4 @@
-//! `GET /v1/jobs/{id}/frames/{frame}`: a PNG of one frame of a job's 2D store, drawn as
+//! `GET /v1/jobs/{id}/frames/{frame}`: a PNG of one frame of a job's store (a 3D one seen along z), drawn as
 //! `mpm render` draws it (by the binary's [`FrameRenderer`](crate::FrameRenderer)), and
 //! `GET /v1/jobs/{id}/scene`, the scene a job runs.
 
