@@ -61,9 +61,9 @@ use crate::physics::PhysicsFault;
 use crate::scene::{IncompressibleSettings, Transfer, ViscousIntegration};
 use surface_tension::SurfaceTension;
 
-/// Share of a cell's excess particle volume the pressure equation removes per step in
-/// scenes with an inflow (inflow.rs).
-const VOLUME_CORRECTION: f64 = 0.2;
+/// Share of a cell's excess particle volume the pressure equation removes per velocity-CFL
+/// step in scenes with an inflow (inflow.rs); a shorter step removes less, in proportion.
+const VOLUME_CORRECTION: f64 = 0.3;
 
 /// Corners of a cell (2^D, at most 8).
 const MAX_CORNERS: usize = 8;
@@ -300,11 +300,25 @@ where
     }
 
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
+        convective_step(sim)
+            .min(self.liquid_step(sim))
+            .min(sim.physics_dt)
+    }
+}
+
+/// Velocity CFL step before `cfl`, with the speed gravity adds within one step so that a
+/// liquid at rest does not get an unbounded step: dx / (|v|max + √(dx·|g|)).
+fn convective_step<const D: usize, K: Kernel>(sim: &Simulation<D, K>) -> f64 {
+    let dx = sim.grid.dx;
+    let g = sim.settings.gravity.norm();
+    dx / (sim.kinematics.max_speed + (dx * g).sqrt()).max(1e-300)
+}
+
+impl<const D: usize> Incompressible<D> {
+    /// The liquid's own step bounds before `cfl`: the explicit viscous limit ρdx²/(2Dμ)
+    /// (explicit viscosity only) and the capillary one (surface_tension.rs).
+    fn liquid_step<K: Kernel>(&self, sim: &Simulation<D, K>) -> f64 {
         let dx = sim.grid.dx;
-        // Velocity CFL, with the speed gravity adds within one step so that a liquid at
-        // rest does not get an unbounded step: dx / (|v|max + √(dx·|g|)).
-        let g = sim.settings.gravity.norm();
-        let convective = dx / (sim.kinematics.max_speed + (dx * g).sqrt()).max(1e-300);
         let mut viscous = f64::INFINITY;
         let explicit = self.viscosity.is_none();
         for group in sim.particles.groups.iter().filter(|_| explicit) {
@@ -322,11 +336,9 @@ where
                 surface_tension::stable_dt(g.material.surface_tension(), g.material.density(), dx)
             })
             .fold(f64::INFINITY, f64::min);
-        convective.min(viscous).min(capillary).min(sim.physics_dt)
+        viscous.min(capillary)
     }
-}
 
-impl<const D: usize> Incompressible<D> {
     /// Turns nodal momentum into velocity with the explicit forces (as the explicit grid
     /// update does) and keeps it before the walls and obstacles act: the projection
     /// corrects that velocity, so a wall's reaction to gravity and to the pressure
@@ -416,7 +428,11 @@ impl<const D: usize> Incompressible<D> {
         // particle volume differs from their own give or take the difference within the
         // step (inflow.rs).
         if sim.inflow.as_ref().is_some_and(|f| f.has_inlets()) {
-            let share = 1.0 / (corners as f64 * dt * dt);
+            // The share is per velocity-CFL step (the step the flow alone would take): a
+            // shorter step (a capillary or viscous bound, a frame time) gives less, in
+            // proportion, so the correction's velocity does not grow as 1/dt.
+            let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
+            let share = rate / (corners as f64 * dt * dt);
             for c in 0..self.cell_volume.len() {
                 if let Some(volume) = self.volume_source(c, sim.grid.dx) {
                     let base = self.cell_node[c];
@@ -513,8 +529,8 @@ impl<const D: usize> Incompressible<D> {
         apply_boundaries(sim, sim.time + dt);
     }
 
-    /// The volume cell `c` is to give (or take, negative) in this step in a scene with
-    /// inlets: the share `VOLUME_CORRECTION` of the difference between its particles'
+    /// The volume cell `c` is to give (or take, negative) in a velocity-CFL step in a scene
+    /// with inlets: the share `VOLUME_CORRECTION` of the difference between its particles'
     /// volume and its own, in cells inside the liquid (every corner a pressure unknown),
     /// and only what it holds too much in cells on the free surface (inflow.rs).
     fn volume_source(&self, c: usize, dx: f64) -> Option<f64> {
