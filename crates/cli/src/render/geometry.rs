@@ -99,25 +99,41 @@ pub(crate) fn particle_spacing<const N: usize>(points: &[[f64; N]]) -> Option<f6
         let centre = key(p);
         let mut best = f64::INFINITY;
         for r in 0..=MAX_RING {
-            let side = (2 * r + 1) as usize;
-            for flat in 0..side.pow(N as u32) {
-                let mut rest = flat;
-                let offset: [i64; N] = std::array::from_fn(|_| {
-                    let o = (rest % side) as i64 - r;
-                    rest /= side;
-                    o
-                });
-                if offset.iter().all(|o| o.abs() != r) {
-                    continue; // inside the shell: searched at a smaller r
-                }
-                let b: [i64; N] = std::array::from_fn(|a| centre[a] + offset[a]);
-                for &j in buckets.get(&b).into_iter().flatten() {
-                    let d = (0..N)
-                        .map(|a| (points[j][a] - p[a]).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    if j != i && d > 0.0 && d < best {
-                        best = d;
+            // The shell's buckets: the first axis at distance r is `lead`, the axes before it
+            // lie strictly inside, those after it anywhere in [-r, r].
+            for lead in 0..N {
+                let width = (2 * r + 1) as usize;
+                let inner = (2 * r - 1).max(0) as usize;
+                let count = inner.pow(lead as u32) * width.pow((N - lead - 1) as u32);
+                for sign in [-r, r] {
+                    for flat in 0..count {
+                        let mut rest = flat;
+                        let offset: [i64; N] = std::array::from_fn(|a| {
+                            if a == lead {
+                                return sign;
+                            }
+                            let (span, low) = if a < lead {
+                                (inner, 1 - r)
+                            } else {
+                                (width, -r)
+                            };
+                            let o = (rest % span) as i64 + low;
+                            rest /= span;
+                            o
+                        });
+                        let b: [i64; N] = std::array::from_fn(|a| centre[a] + offset[a]);
+                        for &j in buckets.get(&b).into_iter().flatten() {
+                            let d = (0..N)
+                                .map(|a| (points[j][a] - p[a]).powi(2))
+                                .sum::<f64>()
+                                .sqrt();
+                            if j != i && d > 0.0 && d < best {
+                                best = d;
+                            }
+                        }
+                    }
+                    if r == 0 {
+                        break; // one bucket: -0 and +0 are the same
                     }
                 }
             }
