@@ -51,11 +51,27 @@ pub(super) fn picture_bounds(
     Some(b)
 }
 
+/// The spacing of the particles `drawn` (indices into `positions`, `dim` numbers each) in
+/// the run's own dimension: seen along an axis, a 3D run's particles lie on one another in
+/// the picture, so their spacing there says nothing.
+pub(super) fn spacing_of(positions: &[f64], dim: usize, drawn: &[usize]) -> Option<f64> {
+    fn gather<const N: usize>(positions: &[f64], drawn: &[usize]) -> Vec<[f64; N]> {
+        drawn
+            .iter()
+            .map(|&p| std::array::from_fn(|a| positions[N * p + a]))
+            .collect()
+    }
+    match dim {
+        3 => particle_spacing(&gather::<3>(positions, drawn)),
+        _ => particle_spacing(&gather::<2>(positions, drawn)),
+    }
+}
+
 /// Estimated particle spacing: the median distance to the nearest other particle, over up
 /// to 2000 particles, found with a bucket grid, in the particles' own dimension `N` (a 3D
 /// run seen along an axis stacks particles on one another in the picture). `None` for fewer
 /// than two distinct points.
-pub(crate) fn particle_spacing<const N: usize>(points: &[[f64; N]]) -> Option<f64> {
+fn particle_spacing<const N: usize>(points: &[[f64; N]]) -> Option<f64> {
     let n = points.len();
     if n < 2 {
         return None;

@@ -18,7 +18,7 @@ use crate::exit_status::input_error;
 use anyhow::{Context, bail};
 use colour::finite_range;
 use draw::{Picture, draw};
-use geometry::{domain, particle_spacing, picture_bounds};
+use geometry::{domain, picture_bounds, spacing_of};
 use mpm_io::ResultStore;
 use serde_json::Value;
 use std::path::PathBuf;
@@ -191,14 +191,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         title = format!("{title}, {} {noun}", v.len());
     }
 
-    // The squares' side is the spacing in the run's own dimension: seen along an axis, a 3D
-    // run's particles lie on one another in the picture.
-    let spacing = if dim == 3 {
-        let at = |p: usize| -> [f64; 3] { std::array::from_fn(|a| positions[3 * p + a]) };
-        particle_spacing(&drawn.iter().map(|&p| at(p)).collect::<Vec<_>>())
-    } else {
-        particle_spacing(&points.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>())
-    };
+    let spacing = spacing_of(&positions, dim, &drawn);
     let bounds = picture_bounds(
         &points,
         domain(attributes, view.axes),

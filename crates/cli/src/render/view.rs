@@ -100,8 +100,11 @@ impl View {
             }
             drawn.push((depth, p));
         }
-        // Seen from the positive end of the depth axis: the largest depth is drawn last.
-        drawn.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        // Seen from the positive end of the depth axis: the largest depth is drawn last (a
+        // stable sort: ties keep the particles' order). A 2D store keeps its order.
+        if self.depth.is_some() {
+            drawn.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
         let points = drawn
             .iter()
             .map(|&(_, p)| {
