@@ -199,6 +199,14 @@ fn liquid_entering_and_leaving_resumes_bit_for_bit() {
 }
 
 #[test]
+fn a_sealed_air_pocket_resumes_bit_for_bit() {
+    // The U-tube with its sealed pocket: a checkpoint forgets the pocket's history in the
+    // run that writes it as in the resumed one (both start the pocket again from the
+    // ambient pressure and its measured volume).
+    resumed_equals_uninterrupted("enclosed-air-u-tube.json", &["solver.end_time=0.15"], 150);
+}
+
+#[test]
 fn a_staged_run_resumes_in_its_stage_bit_for_bit() {
     // The cure/cool/cycles chain with a checkpoint every 50 steps: the latest is in the
     // `cycles` stage; the resumed run writes that stage on and keeps the earlier stages'

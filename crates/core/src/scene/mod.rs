@@ -29,8 +29,9 @@ pub use inflow::{INJECTED, Inflow, InflowLayout};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, Output, StopCriteria};
 pub use solver_settings::{
-    AntiLocking, FreeStrain2d, ImplicitForm, ImplicitSettings, IncompressibleSettings, KernelName,
-    KrylovMethod, Mechanics, Scheme, Solver, TangentMethod, Transfer, ViscousIntegration,
+    AntiLocking, EnclosedAirSettings, FreeStrain2d, ImplicitForm, ImplicitSettings,
+    IncompressibleSettings, KernelName, KrylovMethod, Mechanics, Scheme, Solver, TangentMethod,
+    Transfer, ViscousIntegration,
 };
 pub use stages::{FIXED_ACROSS_STAGES, RemoveParticles, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{

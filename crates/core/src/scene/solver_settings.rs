@@ -161,6 +161,33 @@ pub struct IncompressibleSettings {
     /// left the grid: the vents of a mould, the open end of a channel.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub outflow: bool,
+    /// Air the liquid encloses (cut off from every domain face without a wall) resists
+    /// being filled as an isothermal ideal gas; without it an enclosed pocket is free
+    /// surface at zero pressure and costs nothing to fill.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub enclosed_air: Option<EnclosedAirSettings>,
+}
+
+/// Settings of `solver.mechanics.incompressible.enclosed_air`: the gas in the pockets the
+/// liquid closes (solver/incompressible/enclosed_air.rs).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EnclosedAirSettings {
+    /// Absolute pressure of the open air, Pa: a pocket closes at it, and its gauge pressure
+    /// is p·V₀/V − this after its volume goes from V₀ to V (Boyle).
+    #[serde(default = "default_ambient_pressure")]
+    pub ambient_pressure: f64,
+    /// Smallest pocket, in cells, whose gas resists; a smaller one (a gap between moving
+    /// particles) stays free surface.
+    #[serde(default = "default_min_pocket_cells")]
+    pub min_cells: f64,
+}
+
+fn default_ambient_pressure() -> f64 {
+    101_325.0
+}
+fn default_min_pocket_cells() -> f64 {
+    4.0
 }
 
 impl Default for IncompressibleSettings {
@@ -170,6 +197,7 @@ impl Default for IncompressibleSettings {
             max_iterations: default_pressure_iterations(),
             viscosity: ViscousIntegration::default(),
             outflow: false,
+            enclosed_air: None,
         }
     }
 }
@@ -521,6 +549,26 @@ impl Solver {
             }
             if settings.max_iterations == 0 {
                 v.err(format!("{p}.max_iterations"), "must be at least 1");
+            }
+            if let Some(air) = &settings.enclosed_air {
+                if !(air.ambient_pressure.is_finite() && air.ambient_pressure > 0.0) {
+                    v.err(
+                        format!("{p}.enclosed_air.ambient_pressure"),
+                        format!(
+                            "must be a finite absolute pressure > 0 Pa (got {})",
+                            air.ambient_pressure
+                        ),
+                    );
+                }
+                if !(air.min_cells.is_finite() && air.min_cells >= 1.0) {
+                    v.err(
+                        format!("{p}.enclosed_air.min_cells"),
+                        format!(
+                            "must be a finite number of cells ≥ 1 (got {})",
+                            air.min_cells
+                        ),
+                    );
+                }
             }
             if self.anti_locking == AntiLocking::Fbar {
                 v.err(

@@ -41,6 +41,8 @@
 //! viscous stress out and a backward-Euler viscous solve on the grid (viscosity.rs) acts
 //! between steps 1 and 2; the viscous bound then goes.
 
+mod enclosed_air;
+mod extrapolate;
 pub(super) mod inflow;
 mod outflow;
 mod surface_tension;
@@ -64,6 +66,11 @@ use surface_tension::SurfaceTension;
 /// Share of a cell's excess particle volume the pressure equation removes per velocity-CFL
 /// step in scenes with an inflow (inflow.rs); a shorter step removes less, in proportion.
 const VOLUME_CORRECTION: f64 = 0.3;
+
+/// Physics figure: the most enclosed-air pockets that resisted in one step.
+pub const AIR_POCKETS: &str = "incompressible.air_pockets";
+/// Physics figure: the largest gauge pressure of an enclosed-air pocket over the run, Pa.
+pub const AIR_PRESSURE: &str = "incompressible.air_pressure";
 
 /// Corners of a cell (2^D, at most 8).
 const MAX_CORNERS: usize = 8;
@@ -108,6 +115,8 @@ pub(super) struct Incompressible<const D: usize> {
     ap: Vec<f64>,
     /// The implicit viscous step (`viscosity: "implicit"`), else `None`.
     viscosity: Option<viscosity::ImplicitViscosity<D>>,
+    /// The gas in the pockets the liquid encloses (`enclosed_air`), else `None`.
+    air: Option<enclosed_air::EnclosedAir>,
 }
 
 impl<const D: usize> Incompressible<D> {
@@ -115,6 +124,7 @@ impl<const D: usize> Incompressible<D> {
         Self {
             viscosity: (settings.viscosity == ViscousIntegration::Implicit)
                 .then(viscosity::ImplicitViscosity::default),
+            air: settings.enclosed_air.map(enclosed_air::EnclosedAir::new),
             settings,
             stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
             gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
@@ -297,6 +307,9 @@ where
         if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.forget_pressure_force();
         }
+        if let Some(air) = self.air.as_mut() {
+            air.forget();
+        }
     }
 
     fn stable_dt(&self, sim: &Simulation<D, K>) -> f64 {
@@ -427,11 +440,11 @@ impl<const D: usize> Incompressible<D> {
         // With inlets, cells inside the liquid (no corner on the free surface) whose
         // particle volume differs from their own give or take the difference within the
         // step (inflow.rs).
-        if sim.inflow.as_ref().is_some_and(|f| f.has_inlets()) {
-            // The share is per velocity-CFL step (the step the flow alone would take): a
-            // shorter step (a capillary or viscous bound, a frame time) gives less, in
-            // proportion, so the correction's velocity does not grow as 1/dt.
-            let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
+        // The share is per velocity-CFL step (the step the flow alone would take): a
+        // shorter step (a capillary or viscous bound, a frame time) gives less, in
+        // proportion, so the correction's velocity does not grow as 1/dt.
+        let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
+        if self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets()) {
             let share = rate / (corners as f64 * dt * dt);
             for c in 0..self.cell_volume.len() {
                 if let Some(volume) = self.volume_source(c, sim.grid.dx) {
@@ -462,6 +475,33 @@ impl<const D: usize> Incompressible<D> {
                 &mut self.pressure,
             );
         }
+        let n = sim.grid.len();
+        if let Some(mut air) = self.air.take() {
+            air.find_pockets(
+                &sim.grid,
+                &self.cell_volume,
+                &self.cell_solid,
+                &self.cell_node,
+                &self.corner_offset[..corners],
+            );
+            for v in self.solve_vectors() {
+                v.resize(n + air.unknowns(), 0.0);
+            }
+            let (cell_volume, cell_mass) = (&self.cell_volume, &self.cell_mass);
+            air.fill_rows(
+                n,
+                dt,
+                VOLUME_CORRECTION * rate,
+                |c| (cell_volume[c] > 0.0).then(|| cell_volume[c] / cell_mass[c]),
+                &self.cell_node,
+                &self.corner_offset[..corners],
+                &self.stiffness,
+                &mut self.rhs,
+                &mut self.inverse_diagonal,
+                &mut self.pressure,
+            );
+            self.air = Some(air);
+        }
         let Self {
             stiffness,
             corner_offset,
@@ -476,23 +516,34 @@ impl<const D: usize> Incompressible<D> {
             p,
             ap,
             settings,
+            air,
             ..
         } = self;
+        let air = air.as_ref();
         let apply = |x: &[f64], y: &mut [f64]| {
             y.fill(0.0);
+            let mut xc = [0.0; MAX_CORNERS];
             for c in 0..cell_mass.len() {
                 if cell_volume[c] <= 0.0 {
                     continue;
                 }
                 let scale = cell_volume[c] / cell_mass[c];
                 let base = cell_node[c];
+                for (b, value) in xc.iter_mut().enumerate().take(corners) {
+                    let j = base + corner_offset[b];
+                    // A node around an enclosed pocket adds the pocket's pressure.
+                    *value = x[j] + air.map_or(0.0, |a| a.tied(j, x, n));
+                }
                 for a in 0..corners {
                     let mut sum = 0.0;
                     for b in 0..corners {
-                        sum += stiffness[a][b] * x[base + corner_offset[b]];
+                        sum += stiffness[a][b] * xc[b];
                     }
                     y[base + corner_offset[a]] += scale * sum;
                 }
+            }
+            if let Some(air) = air {
+                air.gather(x, y, n);
             }
         };
         let result = if inverse_diagonal.iter().any(|&v| v > 0.0) {
@@ -517,8 +568,17 @@ impl<const D: usize> Incompressible<D> {
             ("incompressible.iterations", "pressure", "pressure solve"),
             self.settings.max_iterations,
         );
+        if let Some(mut air) = self.air.take() {
+            sim.report.record_max(AIR_POCKETS, air.unknowns() as f64);
+            let largest = air.finish(&mut self.pressure, n);
+            sim.report.record_max(AIR_PRESSURE, largest);
+            for v in self.solve_vectors() {
+                v.truncate(n);
+            }
+            self.air = Some(air);
+        }
         self.pressure_correction(dt, sim.grid.dx);
-        self.extrapolate_correction(&sim.grid);
+        extrapolate::extrapolate_correction(&sim.grid, &mut self.correction, &mut self.layer);
         // Projection of the velocity before the walls, then the walls.
         for (i, v) in sim.grid.momentum.iter_mut().enumerate() {
             *v = self.free_velocity[i];
@@ -527,6 +587,20 @@ impl<const D: usize> Incompressible<D> {
             }
         }
         apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// The pressure solve's vectors: one entry per node, and per enclosed-air pocket
+    /// while the solve runs (enclosed_air.rs).
+    fn solve_vectors(&mut self) -> [&mut Vec<f64>; 7] {
+        [
+            &mut self.inverse_diagonal,
+            &mut self.pressure,
+            &mut self.rhs,
+            &mut self.r,
+            &mut self.z,
+            &mut self.p,
+            &mut self.ap,
+        ]
     }
 
     /// The volume cell `c` is to give (or take, negative) in a velocity-CFL step in a scene
@@ -553,7 +627,7 @@ impl<const D: usize> Incompressible<D> {
         };
         viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal);
         self.pressure_correction(1.0, grid.dx);
-        self.extrapolate_correction(grid);
+        extrapolate::extrapolate_correction(grid, &mut self.correction, &mut self.layer);
         if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.keep_pressure_force(&self.correction, &self.layer);
         }
@@ -605,61 +679,6 @@ impl<const D: usize> Incompressible<D> {
                 *layer = 0;
             } else {
                 *layer = u8::MAX;
-            }
-        }
-    }
-
-    /// Extrapolates the projection's velocity change to the nodes that carry P2G mass but
-    /// touch no liquid cell. A B-spline reaches one node beyond the corners of the cell a
-    /// particle lies in (quadratic and cubic alike), so such nodes lie above the free
-    /// surface and behind walls; left out they would keep the unprojected v* (free fall),
-    /// and G2P would hand that to the particles beside them every step. Each pass gives a
-    /// node still unset the mean of its already set neighbours (the 3^D - 1 around it),
-    /// reading only earlier passes, so the result does not depend on the node order: the
-    /// pressure acceleration ∇p/ρ continued at constant value over the kernel's reach, as
-    /// PIC/FLIP/APIC liquid solvers extrapolate the projected velocity into the air
-    /// (Zhu & Bridson 2005; Jiang et al. 2015). No node has such mass with the linear
-    /// kernel, so this changes nothing there.
-    fn extrapolate_correction(&mut self, grid: &crate::grid::Grid<D>) {
-        const PASSES: u8 = 2;
-        let offsets = (0..D).fold(1, |n, _| n * 3);
-        for pass in 1..=PASSES {
-            let mut unset = false;
-            for i in 0..grid.len() {
-                if self.layer[i] != u8::MAX || grid.mass[i] <= 0.0 {
-                    continue;
-                }
-                let ijk = node_coords(&grid.stride, i);
-                let mut sum = Vector::<D>::zeros();
-                let mut count = 0usize;
-                for k in 0..offsets {
-                    let mut rest = k;
-                    let mut j = 0usize;
-                    let mut inside = true;
-                    for (d, &at) in ijk.iter().enumerate().take(D) {
-                        let step = (rest % 3) as isize - 1;
-                        rest /= 3;
-                        let n = at as isize + step;
-                        if n < 0 || n >= grid.nodes[d] as isize {
-                            inside = false;
-                            break;
-                        }
-                        j += n as usize * grid.stride[d];
-                    }
-                    if inside && j != i && self.layer[j] < pass {
-                        sum += self.correction[j];
-                        count += 1;
-                    }
-                }
-                if count > 0 {
-                    self.correction[i] = sum / count as f64;
-                    self.layer[i] = pass;
-                } else {
-                    unset = true;
-                }
-            }
-            if !unset {
-                break;
             }
         }
     }

@@ -1,0 +1,400 @@
+//! Air the liquid encloses (`solver.mechanics.incompressible.enclosed_air`): a pocket of
+//! air cut off from every open domain face is an isothermal ideal gas that resists being
+//! filled, instead of free surface at zero pressure.
+//!
+//! Each step the empty cells (no particle, not solid) are split into regions; two empty
+//! cells that share a grid node belong to one region, so no node touches two of them. A
+//! region that reaches the grid's edge through an open face (the padding beyond a walled
+//! face is solid) is open air. A closed one holds gas: the amount p·V it had last step
+//! (shared out over the regions its cells went to, in proportion to cells, so pockets that
+//! split or merge keep their gas, and gas that reaches open air is gone) plus the ambient
+//! pressure times the cells that were open air (a pocket closing). A region of liquid cells
+//! torn open, with no gas, stays free surface, as does a pocket of fewer than `min_cells`
+//! cells (it keeps its gas for when it grows).
+//!
+//! The nodes around a pocket share one pressure unknown P_k (plus the surface-tension
+//! Laplace pressure each node has on its own), the pocket's row being the sum of its nodes'
+//! rows: with φ = Σ_{i ∈ pocket} N_i that row says the liquid's volume flux into the pocket
+//! within the step, ∫∇φ·v dt, is what the gas gives up at the new pressure (Boyle,
+//! linearised: V·(P − P_last)/p_abs) plus a share of the difference between the pocket's
+//! measured volume and the gas's own V = n/p_abs (the same share per velocity-CFL step as
+//! the inflow's volume source, so that particles drifting into a pocket are pushed out
+//! again and the gas's volume follows the cells over many steps, not in one jolt):
+//! Σ_i (A p)_i + C P_k = Σ_i b_i + C P_last − (share/dt²)(V_measured − V), C = V/(p_abs·dt²).
+//! C > 0 keeps the system symmetric positive definite even in a box with every face walled.
+//! The measured volume is the pocket's cells plus what the liquid cells around it lack of a
+//! full cell, so a surface row half full counts half.
+//!
+//! A checkpoint forgets the pockets' history (the writing run and the resumed one alike):
+//! each pocket starts again from the ambient pressure and its measured volume.
+
+use crate::grid::Grid;
+use crate::scene::EnclosedAirSettings;
+
+/// No region (a liquid or solid cell), no pocket (a node no pocket ties).
+const NONE: u32 = u32::MAX;
+/// Last step's label of a cell that was open air.
+const OPEN: u32 = u32::MAX - 1;
+
+/// One empty region of this step.
+#[derive(Clone, Copy, Debug, Default)]
+struct Region {
+    cells: usize,
+    open: bool,
+    /// Gas amount p_abs·V (Pa·m^D) and the gas's own volume V = n/p_abs.
+    gas: f64,
+    volume: f64,
+    /// Index among this step's pocket unknowns, or `NONE`.
+    unknown: u32,
+    /// Index among the carried pockets (closed with gas), or `NONE`.
+    carried: u32,
+}
+
+/// A pocket with gas, carried from one step to the next.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pocket {
+    gas: f64,
+    volume: f64,
+    /// Cells of this step's regions its cells went to (filled in the next step).
+    reached: usize,
+}
+
+/// One pocket pressure unknown of this step's solve.
+#[derive(Clone, Copy, Debug, Default)]
+struct Unknown {
+    region: u32,
+    /// C = V/(p_abs·dt²) and the diagonal of the pocket's row for the preconditioner.
+    compliance: f64,
+    diagonal: f64,
+    /// Measured volume: the region's cells plus the neighbouring liquid cells' shortfall.
+    measured: f64,
+}
+
+/// The enclosed air's state and workspace (sized on the first step, reused).
+pub(super) struct EnclosedAir {
+    settings: EnclosedAirSettings,
+    /// Per cell: this step's region, or `NONE`.
+    region: Vec<u32>,
+    /// Per cell: last step's carried pocket, `OPEN` for open air, or `NONE`.
+    before: Vec<u32>,
+    /// Per node: this step's pocket unknown that ties it, or `NONE`.
+    tie: Vec<u32>,
+    regions: Vec<Region>,
+    pockets: Vec<Pocket>,
+    next_pockets: Vec<Pocket>,
+    unknowns: Vec<Unknown>,
+    stack: Vec<usize>,
+    /// The pockets' history is unknown (first step, after a checkpoint).
+    fresh: bool,
+}
+
+impl EnclosedAir {
+    pub(super) fn new(settings: EnclosedAirSettings) -> Self {
+        Self {
+            settings,
+            region: Vec::new(),
+            before: Vec::new(),
+            tie: Vec::new(),
+            regions: Vec::new(),
+            pockets: Vec::new(),
+            next_pockets: Vec::new(),
+            unknowns: Vec::new(),
+            stack: Vec::new(),
+            fresh: true,
+        }
+    }
+
+    /// Forgets the pockets' history (a checkpoint is written: the resumed run has none).
+    pub(super) fn forget(&mut self) {
+        self.fresh = true;
+    }
+
+    /// Number of pocket unknowns this step (appended after the nodes in the solve).
+    pub(super) fn unknowns(&self) -> usize {
+        self.unknowns.len()
+    }
+
+    /// Finds this step's regions and pockets and ties the pockets' nodes. `cell_volume`
+    /// is the particles' volume per cell (0: empty), `cell_node` the lowest corner node of
+    /// each cell, `corners` the node offsets of a cell's corners.
+    pub(super) fn find_pockets<const D: usize>(
+        &mut self,
+        grid: &Grid<D>,
+        cell_volume: &[f64],
+        cell_solid: &[bool],
+        cell_node: &[usize],
+        corners: &[usize],
+    ) {
+        let cells = cell_volume.len();
+        if self.region.len() != cells {
+            self.region = vec![NONE; cells];
+            self.before = vec![NONE; cells];
+            self.tie = vec![NONE; grid.len()];
+        }
+        let cell_size = grid.dx.powi(D as i32);
+        let ambient = self.settings.ambient_pressure;
+        let mut shape = [1usize; 3];
+        shape[..D].copy_from_slice(&grid.cells[..D]);
+        self.region.fill(NONE);
+        self.regions.clear();
+        for pocket in &mut self.pockets {
+            pocket.reached = 0;
+        }
+        // Flood fill over the empty cells, 3^D − 1 neighbours (cells sharing a node).
+        for seed in 0..cells {
+            if self.region[seed] != NONE || cell_volume[seed] > 0.0 || cell_solid[seed] {
+                continue;
+            }
+            let label = self.regions.len() as u32;
+            let mut region = Region {
+                unknown: NONE,
+                carried: NONE,
+                ..Region::default()
+            };
+            self.region[seed] = label;
+            self.stack.clear();
+            self.stack.push(seed);
+            while let Some(c) = self.stack.pop() {
+                region.cells += 1;
+                let ijk = coords::<D>(c, &shape);
+                if (0..D).any(|d| ijk[d] == 0 || ijk[d] + 1 == shape[d]) {
+                    region.open = true;
+                }
+                for k in 0..3usize.pow(D as u32) {
+                    let mut rest = k;
+                    let mut neighbour = 0usize;
+                    let mut inside = true;
+                    for d in 0..D {
+                        let at = ijk[d] as isize + (rest % 3) as isize - 1;
+                        rest /= 3;
+                        if at < 0 || at >= shape[d] as isize {
+                            inside = false;
+                            break;
+                        }
+                        neighbour = neighbour * shape[d] + at as usize;
+                    }
+                    if inside
+                        && self.region[neighbour] == NONE
+                        && cell_volume[neighbour] <= 0.0
+                        && !cell_solid[neighbour]
+                    {
+                        self.region[neighbour] = label;
+                        self.stack.push(neighbour);
+                    }
+                }
+            }
+            self.regions.push(region);
+        }
+        if self.fresh {
+            // No history: every region's air is at the ambient pressure.
+            for region in &mut self.regions {
+                region.gas = ambient * region.cells as f64 * cell_size;
+                region.volume = region.cells as f64 * cell_size;
+            }
+            self.fresh = false;
+        } else {
+            self.share_out_gas(cell_size);
+        }
+        // Closed regions with gas are carried; large enough ones get an unknown.
+        self.next_pockets.clear();
+        self.unknowns.clear();
+        for (r, region) in self.regions.iter_mut().enumerate() {
+            if region.open || region.gas <= 0.0 {
+                continue;
+            }
+            region.carried = self.next_pockets.len() as u32;
+            self.next_pockets.push(Pocket {
+                gas: region.gas,
+                volume: region.volume,
+                reached: 0,
+            });
+            if region.cells as f64 >= self.settings.min_cells {
+                region.unknown = self.unknowns.len() as u32;
+                self.unknowns.push(Unknown {
+                    region: r as u32,
+                    measured: region.cells as f64 * cell_size,
+                    ..Unknown::default()
+                });
+            }
+        }
+        std::mem::swap(&mut self.pockets, &mut self.next_pockets);
+        for c in 0..cells {
+            let r = self.region[c];
+            self.before[c] = if r == NONE {
+                NONE
+            } else if self.regions[r as usize].open {
+                OPEN
+            } else {
+                self.regions[r as usize].carried
+            };
+        }
+        // Tie the pockets' nodes; add the shortfall of the liquid cells around them.
+        self.tie.fill(NONE);
+        for (&r, &base) in self.region.iter().zip(cell_node) {
+            if r == NONE {
+                continue;
+            }
+            let unknown = self.regions[r as usize].unknown;
+            if unknown != NONE {
+                for offset in corners {
+                    self.tie[base + offset] = unknown;
+                }
+            }
+        }
+        for c in 0..cells {
+            if cell_volume[c] <= 0.0 {
+                continue;
+            }
+            if let Some(&k) = corners
+                .iter()
+                .map(|o| &self.tie[cell_node[c] + o])
+                .find(|k| **k != NONE)
+            {
+                self.unknowns[k as usize].measured += (cell_size - cell_volume[c]).max(0.0);
+            }
+        }
+    }
+
+    /// Gives each region the gas of last step's pockets in proportion to the cells of
+    /// theirs it holds, and the ambient air of the cells that were open air.
+    fn share_out_gas(&mut self, cell_size: f64) {
+        let ambient = self.settings.ambient_pressure;
+        for (c, &r) in self.region.iter().enumerate() {
+            if r == NONE {
+                continue;
+            }
+            match self.before[c] {
+                NONE => {}
+                OPEN => {
+                    let region = &mut self.regions[r as usize];
+                    region.gas += ambient * cell_size;
+                    region.volume += cell_size;
+                }
+                k => self.pockets[k as usize].reached += 1,
+            }
+        }
+        for (c, &r) in self.region.iter().enumerate() {
+            let k = self.before[c];
+            if r == NONE || k == NONE || k == OPEN {
+                continue;
+            }
+            let pocket = self.pockets[k as usize];
+            let share = 1.0 / pocket.reached as f64;
+            let region = &mut self.regions[r as usize];
+            region.gas += pocket.gas * share;
+            region.volume += pocket.volume * share;
+        }
+    }
+
+    /// Fills the pocket unknowns' rows (entries n.. of `rhs`, `inverse_diagonal`, and the
+    /// start value in `pressure`, all of length n + unknowns): the sum of the tied nodes'
+    /// right-hand sides, the gas's compliance, and the volume share (`share` per velocity-
+    /// CFL step, already scaled by the step). `scaled_stiffness(c)` gives a liquid cell's
+    /// element stiffness factor (V/m of the cell) and `stiffness` the element matrix.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn fill_rows(
+        &mut self,
+        n: usize,
+        dt: f64,
+        share: f64,
+        cell_scale: impl Fn(usize) -> Option<f64>,
+        cell_node: &[usize],
+        corners: &[usize],
+        stiffness: &[[f64; 8]; 8],
+        rhs: &mut [f64],
+        inverse_diagonal: &mut [f64],
+        pressure: &mut [f64],
+    ) {
+        let ambient = self.settings.ambient_pressure;
+        for u in self.unknowns.iter_mut() {
+            let region = &self.regions[u.region as usize];
+            let absolute = region.gas / region.volume;
+            u.compliance = region.volume / (absolute * dt * dt);
+            u.diagonal = u.compliance;
+        }
+        // The diagonal of the pocket's row: Σ over liquid cells of the element stiffness
+        // between corners tied to the same pocket.
+        for (c, &base) in cell_node.iter().enumerate() {
+            let Some(scale) = cell_scale(c) else { continue };
+            for (a, oa) in corners.iter().enumerate() {
+                let k = self.tie[base + oa];
+                if k == NONE {
+                    continue;
+                }
+                for (b, ob) in corners.iter().enumerate() {
+                    if self.tie[base + ob] == k {
+                        self.unknowns[k as usize].diagonal += scale * stiffness[a][b];
+                    }
+                }
+            }
+        }
+        rhs[n..n + self.unknowns.len()].fill(0.0);
+        for (i, &k) in self.tie.iter().enumerate() {
+            if k != NONE {
+                rhs[n + k as usize] += rhs[i];
+            }
+        }
+        for (k, u) in self.unknowns.iter().enumerate() {
+            let region = &self.regions[u.region as usize];
+            let last = region.gas / region.volume - ambient;
+            rhs[n + k] += u.compliance * last - share / (dt * dt) * (u.measured - region.volume);
+            inverse_diagonal[n + k] = 1.0 / u.diagonal;
+            pressure[n + k] = last;
+        }
+    }
+
+    /// The pocket pressure a tied node adds to its own value in the operator (0 untied).
+    #[inline]
+    pub(super) fn tied(&self, node: usize, x: &[f64], n: usize) -> f64 {
+        match self.tie.get(node) {
+            Some(&k) if k != NONE => x[n + k as usize],
+            _ => 0.0,
+        }
+    }
+
+    /// The pocket rows of the operator: y[n+k] = Σ_{tied i} y_i + C_k x[n+k].
+    pub(super) fn gather(&self, x: &[f64], y: &mut [f64], n: usize) {
+        for (k, u) in self.unknowns.iter().enumerate() {
+            y[n + k] = u.compliance * x[n + k];
+        }
+        for (i, &k) in self.tie.iter().enumerate() {
+            if k != NONE {
+                y[n + k as usize] += y[i];
+            }
+        }
+    }
+
+    /// After the solve: adds each pocket's pressure to its tied nodes, keeps the gas's new
+    /// volume, and returns the largest pocket gauge pressure (0 without pockets).
+    pub(super) fn finish(&mut self, pressure: &mut [f64], n: usize) -> f64 {
+        let ambient = self.settings.ambient_pressure;
+        for (i, &k) in self.tie.iter().enumerate() {
+            if k != NONE {
+                pressure[i] += pressure[n + k as usize];
+            }
+        }
+        let mut largest: f64 = 0.0;
+        for (k, u) in self.unknowns.iter().enumerate() {
+            let region = &self.regions[u.region as usize];
+            let gauge = pressure[n + k];
+            // The solve never takes a pocket below vacuum; guard against it all the same.
+            let absolute = (ambient + gauge).max(1e-6 * ambient);
+            let pocket = &mut self.pockets[region.carried as usize];
+            pocket.volume = pocket.gas / absolute;
+            largest = largest.max(gauge);
+        }
+        largest
+    }
+}
+
+/// Cell coordinates of cell index `c` (last axis fastest, as `cell_of` numbers them).
+#[inline]
+fn coords<const D: usize>(c: usize, shape: &[usize; 3]) -> [usize; 3] {
+    let mut ijk = [0; 3];
+    let mut rest = c;
+    for d in (0..D).rev() {
+        ijk[d] = rest % shape[d];
+        rest /= shape[d];
+    }
+    ijk
+}
