@@ -560,6 +560,12 @@ impl Solver {
                         ),
                     );
                 }
+                if settings.viscosity == ViscousIntegration::Implicit {
+                    v.err(
+                        format!("{p}.enclosed_air"),
+                        "needs viscosity \"explicit\": the incremental projection of implicit viscosity does not carry a pocket's pressure from step to step (measured: the U-tube's liquid is thrown out of the grid)",
+                    );
+                }
                 if !(air.min_cells.is_finite() && air.min_cells >= 1.0) {
                     v.err(
                         format!("{p}.enclosed_air.min_cells"),
