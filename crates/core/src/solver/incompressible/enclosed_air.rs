@@ -398,3 +398,84 @@ fn coords<const D: usize>(c: usize, shape: &[usize; 3]) -> [usize; 3] {
     }
     ijk
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vector;
+
+    /// An 8 × 8-cell 2D grid with every cell liquid except `empty` (cell coordinates).
+    fn cells_with(empty: &[(usize, usize)]) -> (Grid<2>, Vec<f64>, Vec<bool>, Vec<usize>) {
+        let grid = Grid::<2>::new(Vector::<2>::zeros(), [8, 8, 1], 1.0, false);
+        let mut volume = vec![1.0; 64];
+        for &(i, j) in empty {
+            volume[i * 8 + j] = 0.0;
+        }
+        let node = (0..64)
+            .map(|c| (c / 8) * grid.stride[0] + (c % 8) * grid.stride[1])
+            .collect();
+        (grid, volume, vec![false; 64], node)
+    }
+
+    fn air() -> EnclosedAir {
+        EnclosedAir::new(EnclosedAirSettings {
+            ambient_pressure: 1000.0,
+            min_cells: 2.0,
+        })
+    }
+
+    fn gas(air: &EnclosedAir) -> f64 {
+        air.pockets.iter().map(|p| p.gas).sum()
+    }
+
+    #[test]
+    fn a_closed_hole_is_a_pocket_and_open_air_is_not() {
+        let (grid, volume, solid, node) = cells_with(&[(3, 3), (3, 4), (0, 5), (1, 5)]);
+        let mut air = air();
+        let corners = [
+            0,
+            grid.stride[1],
+            grid.stride[0],
+            grid.stride[0] + grid.stride[1],
+        ];
+        air.find_pockets(&grid, &volume, &solid, &node, &corners);
+        // The hole in the middle, not the notch from the grid's edge.
+        assert_eq!(air.unknowns(), 1);
+        assert_eq!(gas(&air), 1000.0 * 2.0);
+        let tied = air.tie.iter().filter(|k| **k == 0).count();
+        assert_eq!(tied, 2 * 3, "the hole's 2 × 1 cells have 3 × 2 corners");
+    }
+
+    #[test]
+    fn a_pocket_that_splits_keeps_its_gas_and_a_compressed_one_shrinks() {
+        let strip: Vec<(usize, usize)> = (1..6).map(|j| (3, j)).collect();
+        let (grid, volume, solid, node) = cells_with(&strip);
+        let corners = [
+            0,
+            grid.stride[1],
+            grid.stride[0],
+            grid.stride[0] + grid.stride[1],
+        ];
+        let mut air = air();
+        air.find_pockets(&grid, &volume, &solid, &node, &corners);
+        assert_eq!(air.unknowns(), 1);
+        let before = gas(&air);
+        // Liquid fills the strip's middle cell: two pockets of two cells, half the gas each.
+        let (_, mut volume, _, _) = cells_with(&strip);
+        volume[3 * 8 + 3] = 1.0;
+        air.find_pockets(&grid, &volume, &solid, &node, &corners);
+        assert_eq!(air.unknowns(), 2);
+        assert!((gas(&air) - before).abs() < 1e-9, "{} {before}", gas(&air));
+        assert!((air.pockets[0].gas - 0.5 * before).abs() < 1e-9);
+        // Each half compressed to 1500 Pa absolute takes two thirds of its volume.
+        let n = grid.len();
+        let mut pressure = vec![0.0; n + 2];
+        pressure[n] = 500.0;
+        pressure[n + 1] = 500.0;
+        let largest = air.finish(&mut pressure, n);
+        assert_eq!(largest, 500.0);
+        for p in &air.pockets {
+            assert!((p.volume - 2.5 * 2.0 / 3.0).abs() < 1e-12, "{}", p.volume);
+        }
+    }
+}
