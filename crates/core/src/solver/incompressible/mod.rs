@@ -117,6 +117,11 @@ pub(super) struct Incompressible<const D: usize> {
     viscosity: Option<viscosity::ImplicitViscosity<D>>,
     /// The gas in the pockets the liquid encloses (`enclosed_air`), else `None`.
     air: Option<enclosed_air::EnclosedAir>,
+    /// With implicit viscosity: the volume source's own right-hand side and pressure, and
+    /// whether this step has one (see `incremental_pressure`).
+    source_rhs: Vec<f64>,
+    source_pressure: Vec<f64>,
+    source_solved: bool,
 }
 
 impl<const D: usize> Incompressible<D> {
@@ -125,6 +130,9 @@ impl<const D: usize> Incompressible<D> {
             viscosity: (settings.viscosity == ViscousIntegration::Implicit)
                 .then(viscosity::ImplicitViscosity::default),
             air: settings.enclosed_air.map(enclosed_air::EnclosedAir::new),
+            source_rhs: Vec::new(),
+            source_pressure: Vec::new(),
+            source_solved: false,
             settings,
             stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
             gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
@@ -444,13 +452,23 @@ impl<const D: usize> Incompressible<D> {
         // shorter step (a capillary or viscous bound, a frame time) gives less, in
         // proportion, so the correction's velocity does not grow as 1/dt.
         let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
-        if self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets()) {
+        let source = self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
+        self.source_solved = source && self.viscosity.is_some();
+        if self.source_solved {
+            self.source_rhs.resize(self.rhs.len(), 0.0);
+            self.source_rhs.fill(0.0);
+            self.source_pressure.resize(self.rhs.len(), 0.0);
+        }
+        if source {
             let share = rate / (corners as f64 * dt * dt);
             for c in 0..self.cell_volume.len() {
                 if let Some(volume) = self.volume_source(c, sim.grid.dx) {
                     let base = self.cell_node[c];
                     for a in 0..corners {
                         self.rhs[base + self.corner_offset[a]] += volume * share;
+                        if self.source_solved {
+                            self.source_rhs[base + self.corner_offset[a]] += volume * share;
+                        }
                     }
                 }
             }
@@ -502,6 +520,62 @@ impl<const D: usize> Incompressible<D> {
             );
             self.air = Some(air);
         }
+        let result = self.cell_solve(corners, n, true);
+        report_solve(
+            &mut sim.report,
+            result,
+            ("incompressible.iterations", "pressure", "pressure solve"),
+            self.settings.max_iterations,
+        );
+        if let Some(mut air) = self.air.take() {
+            sim.report.record_max(AIR_POCKETS, air.unknowns() as f64);
+            let largest = air.finish(&mut self.pressure, n);
+            sim.report.record_max(AIR_PRESSURE, largest);
+            for v in self.solve_vectors() {
+                v.truncate(n);
+            }
+            self.air = Some(air);
+        }
+        if self.source_solved {
+            // The volume source's own pressure, for `incremental_pressure` to leave out.
+            std::mem::swap(&mut self.rhs, &mut self.source_rhs);
+            std::mem::swap(&mut self.pressure, &mut self.source_pressure);
+            self.pressure.fill(0.0);
+            let result = self.cell_solve(corners, n, false);
+            std::mem::swap(&mut self.rhs, &mut self.source_rhs);
+            std::mem::swap(&mut self.pressure, &mut self.source_pressure);
+            report_solve(
+                &mut sim.report,
+                result,
+                (
+                    "incompressible.source_iterations",
+                    "pressure",
+                    "volume source solve",
+                ),
+                self.settings.max_iterations,
+            );
+        }
+        self.pressure_correction(dt, sim.grid.dx);
+        extrapolate::extrapolate_correction(&sim.grid, &mut self.correction, &mut self.layer);
+        // Projection of the velocity before the walls, then the walls.
+        for (i, v) in sim.grid.momentum.iter_mut().enumerate() {
+            *v = self.free_velocity[i];
+            if self.layer[i] != u8::MAX {
+                *v += self.correction[i];
+            }
+        }
+        apply_boundaries(sim, sim.time + dt);
+    }
+
+    /// Solves the liquid cells' pressure Poisson operator for `pressure` from `rhs` (CG, warm
+    /// started), with the enclosed-air pockets' unknowns after the `n` nodes when
+    /// `with_air`.
+    fn cell_solve(
+        &mut self,
+        corners: usize,
+        n: usize,
+        with_air: bool,
+    ) -> crate::linear_solvers::conjugate_gradient::Solve {
         let Self {
             stiffness,
             corner_offset,
@@ -519,7 +593,7 @@ impl<const D: usize> Incompressible<D> {
             air,
             ..
         } = self;
-        let air = air.as_ref();
+        let air = air.as_ref().filter(|_| with_air);
         let apply = |x: &[f64], y: &mut [f64]| {
             y.fill(0.0);
             let mut xc = [0.0; MAX_CORNERS];
@@ -546,7 +620,7 @@ impl<const D: usize> Incompressible<D> {
                 air.gather(x, y, n);
             }
         };
-        let result = if inverse_diagonal.iter().any(|&v| v > 0.0) {
+        if inverse_diagonal.iter().any(|&v| v > 0.0) {
             solve(
                 apply,
                 inverse_diagonal,
@@ -561,32 +635,7 @@ impl<const D: usize> Incompressible<D> {
                 iterations: 0,
                 converged: true,
             }
-        };
-        report_solve(
-            &mut sim.report,
-            result,
-            ("incompressible.iterations", "pressure", "pressure solve"),
-            self.settings.max_iterations,
-        );
-        if let Some(mut air) = self.air.take() {
-            sim.report.record_max(AIR_POCKETS, air.unknowns() as f64);
-            let largest = air.finish(&mut self.pressure, n);
-            sim.report.record_max(AIR_PRESSURE, largest);
-            for v in self.solve_vectors() {
-                v.truncate(n);
-            }
-            self.air = Some(air);
         }
-        self.pressure_correction(dt, sim.grid.dx);
-        extrapolate::extrapolate_correction(&sim.grid, &mut self.correction, &mut self.layer);
-        // Projection of the velocity before the walls, then the walls.
-        for (i, v) in sim.grid.momentum.iter_mut().enumerate() {
-            *v = self.free_velocity[i];
-            if self.layer[i] != u8::MAX {
-                *v += self.correction[i];
-            }
-        }
-        apply_boundaries(sim, sim.time + dt);
     }
 
     /// The pressure solve's vectors: one entry per node, and per enclosed-air pocket
@@ -625,6 +674,13 @@ impl<const D: usize> Incompressible<D> {
         let Some(viscosity) = self.viscosity.as_mut() else {
             return;
         };
+        // The volume source moves particles back into place once; its pressure is no part
+        // of the liquid's and must not come back as next step's force.
+        if self.source_solved {
+            for (p, q) in self.pressure.iter_mut().zip(&self.source_pressure) {
+                *p -= q;
+            }
+        }
         viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal);
         self.pressure_correction(1.0, grid.dx);
         extrapolate::extrapolate_correction(grid, &mut self.correction, &mut self.layer);
