@@ -47,6 +47,7 @@ pub(super) mod inflow;
 mod outflow;
 mod surface_tension;
 mod viscosity;
+mod volume_source;
 
 use super::DimensionDispatch;
 use super::grid_update::{GridParams, update_grid};
@@ -62,10 +63,7 @@ use crate::math::{Matrix, Vector};
 use crate::physics::PhysicsFault;
 use crate::scene::{IncompressibleSettings, Transfer, ViscousIntegration};
 use surface_tension::SurfaceTension;
-
-/// Share of a cell's excess particle volume the pressure equation removes per velocity-CFL
-/// step in scenes with an inflow (inflow.rs); a shorter step removes less, in proportion.
-const VOLUME_CORRECTION: f64 = 0.3;
+use volume_source::VOLUME_CORRECTION;
 
 /// Physics figure: the most enclosed-air pockets that resisted in one step.
 pub const AIR_POCKETS: &str = "incompressible.air_pockets";
@@ -445,33 +443,13 @@ impl<const D: usize> Incompressible<D> {
                 self.rhs[base + self.corner_offset[a]] += flux / dt;
             }
         }
-        // With inlets, cells inside the liquid (no corner on the free surface) whose
-        // particle volume differs from their own give or take the difference within the
-        // step (inflow.rs).
-        // The share is per velocity-CFL step (the step the flow alone would take): a
-        // shorter step (a capillary or viscous bound, a frame time) gives less, in
-        // proportion, so the correction's velocity does not grow as 1/dt.
+        // Scenes with inlets or enclosed air move misplaced particle volume back (volume_source.rs).
         let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
         let source = self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
-        self.source_solved = source && self.viscosity.is_some();
-        if self.source_solved {
-            self.source_rhs.resize(self.rhs.len(), 0.0);
-            self.source_rhs.fill(0.0);
-            self.source_pressure.resize(self.rhs.len(), 0.0);
-        }
         if source {
-            let share = rate / (corners as f64 * dt * dt);
-            for c in 0..self.cell_volume.len() {
-                if let Some(volume) = self.volume_source(c, sim.grid.dx) {
-                    let base = self.cell_node[c];
-                    for a in 0..corners {
-                        self.rhs[base + self.corner_offset[a]] += volume * share;
-                        if self.source_solved {
-                            self.source_rhs[base + self.corner_offset[a]] += volume * share;
-                        }
-                    }
-                }
-            }
+            self.add_volume_source(sim.grid.dx, dt, rate);
+        } else {
+            self.source_solved = false;
         }
         for (x, free) in self.pressure.iter_mut().zip(&self.inverse_diagonal) {
             if *free <= 0.0 {
@@ -650,20 +628,6 @@ impl<const D: usize> Incompressible<D> {
             &mut self.p,
             &mut self.ap,
         ]
-    }
-
-    /// The volume cell `c` is to give (or take, negative) in a velocity-CFL step in a scene
-    /// with inlets: the share `VOLUME_CORRECTION` of the difference between its particles'
-    /// volume and its own, in cells inside the liquid (every corner a pressure unknown),
-    /// and only what it holds too much in cells on the free surface (inflow.rs).
-    fn volume_source(&self, c: usize, dx: f64) -> Option<f64> {
-        let corners = 1 << D;
-        let base = self.cell_node[c];
-        let inside =
-            (0..corners).all(|a| self.inverse_diagonal[base + self.corner_offset[a]] > 0.0);
-        let excess = self.cell_volume[c] - dx.powi(D as i32);
-        (self.cell_volume[c] > 0.0 && (inside || excess > 0.0))
-            .then_some(VOLUME_CORRECTION * excess)
     }
 
     /// With implicit viscosity the projection solved for the pressure increment: adds the
