@@ -62,31 +62,37 @@ fn a_sealed_pocket_holds_the_level_difference_boyle_gives() {
     // right 6.151 mm, difference 2.414 mm (−2.7%); bound 5% on the difference, 0.1 mm on
     // each level. Without enclosed_air the levels meet (measured 4.91 and 4.72 mm: that run
     // has no volume source, so its particles cluster and the levels sink; bound 0.5 mm).
-    let (m, frames) = run_fields(&load_example("enclosed-air-u-tube.json", &[]), &["x"]);
-    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
-    let last = frames.times.len() - 1;
-    let (left, right) = levels(&frames.values[0][last]);
-    let expected_left = boyle_left_level(200.0);
-    let expected_right = RIGHT0 - (expected_left - LEFT0);
-    eprintln!(
-        "levels {left} {right} against {expected_left} {expected_right}; pocket pressure (largest) {}",
-        m.physics["incompressible.air_pressure"]
-    );
-    let difference = right - left;
-    let expected = expected_right - expected_left;
-    assert!(
-        (difference / expected - 1.0).abs() < 0.05,
-        "level difference {difference} m against {expected} m"
-    );
-    assert!(
-        (left - expected_left).abs() < 1e-4,
-        "left {left} against {expected_left}"
-    );
-    assert!(
-        (right - expected_right).abs() < 1e-4,
-        "right {right} against {expected_right}"
-    );
-    assert_eq!(m.physics["incompressible.air_pockets"], 1.0);
+    // With implicit viscosity (the incremental projection keeps the pocket's pressure in
+    // its nodes from step to step): left 3.717 mm, right 6.158 mm, difference 2.441 mm
+    // (−1.6%); while it kept 0 there, the left level read 4.42 mm, still sloshing.
+    let implicit = r#"solver.mechanics={"incompressible":{"viscosity":"implicit","enclosed_air":{"ambient_pressure":200}}}"#;
+    for overrides in [&[][..], &[implicit][..]] {
+        let (m, frames) = run_fields(&load_example("enclosed-air-u-tube.json", overrides), &["x"]);
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+        let last = frames.times.len() - 1;
+        let (left, right) = levels(&frames.values[0][last]);
+        let expected_left = boyle_left_level(200.0);
+        let expected_right = RIGHT0 - (expected_left - LEFT0);
+        eprintln!(
+            "{overrides:?}: levels {left} {right} against {expected_left} {expected_right}; pocket pressure (largest) {}",
+            m.physics["incompressible.air_pressure"]
+        );
+        let difference = right - left;
+        let expected = expected_right - expected_left;
+        assert!(
+            (difference / expected - 1.0).abs() < 0.05,
+            "level difference {difference} m against {expected} m"
+        );
+        assert!(
+            (left - expected_left).abs() < 1e-4,
+            "left {left} against {expected_left}"
+        );
+        assert!(
+            (right - expected_right).abs() < 1e-4,
+            "right {right} against {expected_right}"
+        );
+        assert_eq!(m.physics["incompressible.air_pockets"], 1.0);
+    }
 
     // The same tank with the air taken for free surface: the levels meet.
     let (m, frames) = run_fields(
@@ -170,16 +176,6 @@ fn enclosed_air_is_refused_where_it_cannot_work() {
         let issues = invalid_example("enclosed-air-u-tube.json", &[&set]);
         assert!(issues.iter().any(|i| i.starts_with(&path)), "{issues:?}");
     }
-    let issues = invalid_example(
-        "enclosed-air-u-tube.json",
-        &[r#"solver.mechanics={"incompressible":{"viscosity":"implicit","enclosed_air":{}}}"#],
-    );
-    assert!(
-        issues
-            .iter()
-            .any(|i| i.starts_with(air) && i.contains("explicit")),
-        "{issues:?}"
-    );
     let issues = invalid_example(
         "enclosed-air-u-tube.json",
         &[&format!("{air}.pressure=1e5")],

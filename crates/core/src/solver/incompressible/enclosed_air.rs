@@ -352,6 +352,20 @@ impl EnclosedAir {
         }
     }
 
+    /// Whether node `i` is tied to a pocket this step.
+    pub(super) fn is_tied(&self, i: usize) -> bool {
+        self.tie.get(i).is_some_and(|&k| k != NONE)
+    }
+
+    /// Calls `f` with every node tied to a pocket this step.
+    pub(super) fn for_each_tied(&self, mut f: impl FnMut(usize)) {
+        for (i, &k) in self.tie.iter().enumerate() {
+            if k != NONE {
+                f(i);
+            }
+        }
+    }
+
     /// The pocket rows of the operator: y[n+k] = Σ_{tied i} y_i + C_k x[n+k].
     pub(super) fn gather(&self, x: &[f64], y: &mut [f64], n: usize) {
         for (k, u) in self.unknowns.iter().enumerate() {

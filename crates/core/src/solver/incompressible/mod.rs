@@ -483,6 +483,11 @@ impl<const D: usize> Incompressible<D> {
             for v in self.solve_vectors() {
                 v.resize(n + air.unknowns(), 0.0);
             }
+            // The incremental projection (implicit viscosity) keeps a pocket's last total
+            // pressure in its nodes: their increment is the new total less that.
+            if let Some(viscosity) = &self.viscosity {
+                air.for_each_tied(|i| self.pressure[i] -= viscosity.last_pressure(i));
+            }
             let (cell_volume, cell_mass) = (&self.cell_volume, &self.cell_mass);
             air.fill_rows(
                 n,
@@ -645,7 +650,10 @@ impl<const D: usize> Incompressible<D> {
                 *p -= q;
             }
         }
-        viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal);
+        let air = self.air.as_ref();
+        viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal, |i| {
+            air.is_some_and(|a| a.is_tied(i))
+        });
         self.pressure_correction(1.0, grid.dx);
         extrapolate::extrapolate_correction(grid, &mut self.correction, &mut self.layer);
         if let Some(viscosity) = self.viscosity.as_mut() {

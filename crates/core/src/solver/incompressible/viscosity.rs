@@ -333,12 +333,22 @@ impl<const D: usize> ImplicitViscosity<D> {
         pressure.fill(0.0);
     }
 
-    /// The total pressure p^n + Δp on the nodes the projection solved for (`free` > 0);
-    /// 0 on the free surface.
-    pub(super) fn total_pressure(&self, pressure: &mut [f64], free: &[f64]) {
-        for ((p, b), f) in pressure.iter_mut().zip(&self.base).zip(free) {
-            *p = if *f > 0.0 { *p + b } else { 0.0 };
+    /// The total pressure p^n + Δp on the nodes the projection solved for (`free` > 0) and
+    /// those `kept` (an enclosed-air pocket's); 0 on the free surface.
+    pub(super) fn total_pressure(
+        &self,
+        pressure: &mut [f64],
+        free: &[f64],
+        kept: impl Fn(usize) -> bool,
+    ) {
+        for (i, ((p, b), f)) in pressure.iter_mut().zip(&self.base).zip(free).enumerate() {
+            *p = if *f > 0.0 || kept(i) { *p + b } else { 0.0 };
         }
+    }
+
+    /// The last total pressure at node `i` (0 before the first step).
+    pub(super) fn last_pressure(&self, i: usize) -> f64 {
+        self.base.get(i).copied().unwrap_or(0.0)
     }
 
     /// Keeps the total pressure's force per unit mass for the next step: `correction`
