@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{invalid_example, load_example, run, run_fields};
+use common::{PIT_3D, invalid_example, load_example, run, run_fields};
 use mpm_core::output::Outcome;
 
 /// Particle spacing of examples/enclosed-air-u-tube.json (0.5 mm cells, 2 per cell).
@@ -126,17 +126,7 @@ fn the_pits_air_stays_in_3d() {
     // empty cells, the rest of its gas in cells particles spread into; largest gauge
     // pressure 739 Pa); taken for free surface, the water fills it by 48 ms.
     let pit = |mechanics: &str| {
-        let overrides = [
-            "dimension=3",
-            "domain.min=[0,0,0]",
-            "domain.max=[0.02,0.03,0.004]",
-            r#"domain.walls=[{"sides":["x-","x+","y-","z-","z+"],"condition":"slip"}]"#,
-            "solver.gravity=[0,-9.81,0]",
-            r#"bodies[0].shape={"box":{"min":[0.004,0.011,0],"max":[0.016,0.015,0.004]}}"#,
-            r#"obstacles[0].shape={"box":{"min":[0,0,0],"max":[0.008,0.006,0.004]}}"#,
-            r#"obstacles[1].shape={"box":{"min":[0.012,0,0],"max":[0.02,0.006,0.004]}}"#,
-            mechanics,
-        ];
+        let overrides: Vec<&str> = PIT_3D.into_iter().chain([mechanics]).collect();
         run(&load_example("liquid-void-pit.json", &overrides))
     };
     let kept = pit(r#"solver.mechanics={"incompressible":{"enclosed_air":{}}}"#);

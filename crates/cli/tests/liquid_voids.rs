@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{invalid_example, load_example, run};
+use common::{PIT_3D, invalid_example, load_example, run};
 
 /// The row of void `id` in the `underfill_voids` table, by column name.
 fn void_row(m: &mpm_core::output::Metrics, id: usize) -> impl Fn(&str) -> f64 + '_ {
@@ -54,20 +54,11 @@ fn a_falling_slab_closes_the_pits_air_at_the_free_fall_time() {
 fn the_pit_in_3d_closes_with_its_volume() {
     // The same, 4 mm (8 cells) deep between slip walls: the void holds the pit's
     // 4 × 6 × 4 mm = 96 mm³ and closes at the same time (measured 30.0 ms).
-    let m = run(&load_example(
-        "liquid-void-pit.json",
-        &[
-            "dimension=3",
-            "domain.min=[0,0,0]",
-            "domain.max=[0.02,0.03,0.004]",
-            r#"domain.walls=[{"sides":["x-","x+","y-","z-","z+"],"condition":"slip"}]"#,
-            "solver.gravity=[0,-9.81,0]",
-            r#"bodies[0].shape={"box":{"min":[0.004,0.011,0],"max":[0.016,0.015,0.004]}}"#,
-            r#"obstacles[0].shape={"box":{"min":[0,0,0],"max":[0.008,0.006,0.004]}}"#,
-            r#"obstacles[1].shape={"box":{"min":[0.012,0,0],"max":[0.02,0.006,0.004]}}"#,
-            "solver.end_time=0.035",
-        ],
-    ));
+    let overrides: Vec<&str> = PIT_3D
+        .into_iter()
+        .chain(["solver.end_time=0.035"])
+        .collect();
+    let m = run(&load_example("liquid-void-pit.json", &overrides));
     let void = void_row(&m, 0);
     assert!(
         (void("closed_time") / free_fall() - 1.0).abs() < 0.03,

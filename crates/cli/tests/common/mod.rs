@@ -269,3 +269,16 @@ pub fn comparison(m: &mpm_core::output::Metrics, name: &str) -> (f64, f64) {
         .unwrap_or_else(|| panic!("no comparison {name}: {:?}", m.comparisons));
     (c.measured, c.reference)
 }
+
+/// Overrides that make examples/liquid-void-pit.json 3D: 4 mm deep between slip walls, the
+/// pit 4 × 6 × 4 mm between two blocks.
+pub const PIT_3D: [&str; 8] = [
+    "dimension=3",
+    "domain.min=[0,0,0]",
+    "domain.max=[0.02,0.03,0.004]",
+    r#"domain.walls=[{"sides":["x-","x+","y-","z-","z+"],"condition":"slip"}]"#,
+    "solver.gravity=[0,-9.81,0]",
+    r#"bodies[0].shape={"box":{"min":[0.004,0.011,0],"max":[0.016,0.015,0.004]}}"#,
+    r#"obstacles[0].shape={"box":{"min":[0,0,0],"max":[0.008,0.006,0.004]}}"#,
+    r#"obstacles[1].shape={"box":{"min":[0.012,0,0],"max":[0.02,0.006,0.004]}}"#,
+];

@@ -235,16 +235,8 @@ impl<const D: usize> Incompressible<D> {
         self.free_velocity = vec![Vector::<D>::zeros(); n];
         self.correction = vec![Vector::<D>::zeros(); n];
         self.layer = vec![u8::MAX; n];
-        for v in [
-            &mut self.inverse_diagonal,
-            &mut self.lumped_mass,
-            &mut self.pressure,
-            &mut self.rhs,
-            &mut self.r,
-            &mut self.z,
-            &mut self.p,
-            &mut self.ap,
-        ] {
+        self.lumped_mass = vec![0.0; n];
+        for v in self.solve_vectors() {
             *v = vec![0.0; n];
         }
     }
