@@ -79,6 +79,9 @@ pub(super) struct EnclosedAir {
     before: Vec<u32>,
     /// Per node: this step's pocket unknown that ties it, or `NONE`.
     tie: Vec<u32>,
+    /// The tied nodes and their unknowns, in node order (the operator's pocket rows read
+    /// these every CG iteration, not the whole `tie`).
+    tied_nodes: Vec<(usize, u32)>,
     regions: Vec<Region>,
     pockets: Vec<Pocket>,
     next_pockets: Vec<Pocket>,
@@ -95,6 +98,7 @@ impl EnclosedAir {
             region: Vec::new(),
             before: Vec::new(),
             tie: Vec::new(),
+            tied_nodes: Vec::new(),
             regions: Vec::new(),
             pockets: Vec::new(),
             next_pockets: Vec::new(),
@@ -241,6 +245,14 @@ impl EnclosedAir {
                 }
             }
         }
+        self.tied_nodes.clear();
+        self.tied_nodes.extend(
+            self.tie
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| **k != NONE)
+                .map(|(i, &k)| (i, k)),
+        );
         for c in 0..cells {
             if cell_volume[c] <= 0.0 {
                 continue;
@@ -329,10 +341,8 @@ impl EnclosedAir {
             }
         }
         rhs[n..n + self.unknowns.len()].fill(0.0);
-        for (i, &k) in self.tie.iter().enumerate() {
-            if k != NONE {
-                rhs[n + k as usize] += rhs[i];
-            }
+        for &(i, k) in &self.tied_nodes {
+            rhs[n + k as usize] += rhs[i];
         }
         for (k, u) in self.unknowns.iter().enumerate() {
             let region = &self.regions[u.region as usize];
@@ -359,10 +369,8 @@ impl EnclosedAir {
 
     /// Calls `f` with every node tied to a pocket this step.
     pub(super) fn for_each_tied(&self, mut f: impl FnMut(usize)) {
-        for (i, &k) in self.tie.iter().enumerate() {
-            if k != NONE {
-                f(i);
-            }
+        for &(i, _) in &self.tied_nodes {
+            f(i);
         }
     }
 
@@ -371,10 +379,8 @@ impl EnclosedAir {
         for (k, u) in self.unknowns.iter().enumerate() {
             y[n + k] = u.compliance * x[n + k];
         }
-        for (i, &k) in self.tie.iter().enumerate() {
-            if k != NONE {
-                y[n + k as usize] += y[i];
-            }
+        for &(i, k) in &self.tied_nodes {
+            y[n + k as usize] += y[i];
         }
     }
 
@@ -382,10 +388,8 @@ impl EnclosedAir {
     /// volume, and returns the largest pocket gauge pressure (0 without pockets).
     pub(super) fn finish(&mut self, pressure: &mut [f64], n: usize) -> f64 {
         let ambient = self.settings.ambient_pressure;
-        for (i, &k) in self.tie.iter().enumerate() {
-            if k != NONE {
-                pressure[i] += pressure[n + k as usize];
-            }
+        for &(i, k) in &self.tied_nodes {
+            pressure[i] += pressure[n + k as usize];
         }
         let mut largest: f64 = 0.0;
         for (k, u) in self.unknowns.iter().enumerate() {

@@ -438,10 +438,9 @@ impl<const D: usize> Incompressible<D> {
         // Scenes with inlets or enclosed air move misplaced particle volume back (volume_source.rs).
         let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
         let source = self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
+        self.source_solved = source && self.viscosity.is_some();
         if source {
             self.add_volume_source(sim.grid.dx, dt, rate);
-        } else {
-            self.source_solved = false;
         }
         for (x, free) in self.pressure.iter_mut().zip(&self.inverse_diagonal) {
             if *free <= 0.0 {

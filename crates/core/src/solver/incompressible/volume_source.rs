@@ -17,11 +17,10 @@ use super::Incompressible;
 pub(super) const VOLUME_CORRECTION: f64 = 0.3;
 
 impl<const D: usize> Incompressible<D> {
-    /// Adds the source to the right-hand side (and, with implicit viscosity, to its own);
+    /// Adds the source to the right-hand side (and, when `source_solved`, to its own);
     /// `rate` = min(1, dt / velocity-CFL step).
     pub(super) fn add_volume_source(&mut self, dx: f64, dt: f64, rate: f64) {
         let corners = 1 << D;
-        self.source_solved = self.viscosity.is_some();
         if self.source_solved {
             self.source_rhs.resize(self.rhs.len(), 0.0);
             self.source_rhs.fill(0.0);
