@@ -88,3 +88,131 @@ fn cure_cool_and_cycles_run_as_one_chain() {
         .unwrap();
     assert!(after.iter().zip(&before).all(|(a, b)| a >= b));
 }
+
+/// The process examples' cured-underfill plasticity and damage (`solid.plasticity` of
+/// `phase_mixture`, `examples/underfill-process-2d.json`): Johnson–Cook flow stress
+/// softening towards 473 K, Johnson–Cook damage.
+const PLASTICITY: &str = r#"materials.underfill.solid.plasticity={"flow_stress":{"yield_stress":7e7,"hardening_modulus":5e7,"hardening_exponent":0.3,"strain_rate_sensitivity":0,"thermal_softening_exponent":1,"room_temperature":298,"melt_temperature":473},"damage":{"d1":0.01,"d2":0.08,"d3":-2.0}}"#;
+
+/// Flow stress of [`PLASTICITY`] at plastic strain `ep` and temperature `t`, Pa.
+fn flow_stress(ep: f64, t: f64) -> f64 {
+    let homologous = ((t - 298.0) / (473.0 - 298.0)).clamp(0.0, 1.0);
+    (7e7 + 5e7 * ep.max(0.0).powf(0.3)) * (1.0 - homologous)
+}
+
+/// The cure-cycles chain with a yielding, damaging underfill: in every frame of the
+/// cool-down and the cycles the solid's von Mises stress (plane strain, with the σ_zz the
+/// law keeps) stays within the solid fraction's share of the flow stress at the particle's
+/// plastic strain and temperature, the plastic strain and the damage only grow, damage is
+/// at most εₚ/D1 (the smallest failure strain), and each stage's summary reports the
+/// store's largest damage at its end.
+#[test]
+fn the_cured_underfill_yields_within_its_flow_stress_and_damages() {
+    let dir = tempfile::tempdir().unwrap();
+    let staged = example("underfill-cure-cycles.json");
+    let fields = r#"stages[1].changes.output.fields=["x","stress","temperature","solid_fraction","solid_stress","plastic_strain","damage"]"#;
+    let out = mpm(
+        &[
+            "run",
+            staged.to_str().unwrap(),
+            "--out",
+            "r",
+            "-q",
+            "--json",
+            "--set",
+            PLASTICITY,
+            "--set",
+            fields,
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let metrics = report.get("metrics").unwrap_or(&report);
+    let path = dir.path().join("r/underfill-cure-cycles.zarr");
+    let mut yielded = 0usize;
+    for (index, stage) in [(1usize, "cool"), (2, "cycles")] {
+        let s = ResultStore::open_stage(&path, Some(stage)).unwrap();
+        let frames = s.frame_count().unwrap();
+        let mut last_strain: Option<Vec<f64>> = None;
+        let mut last_damage: Option<Vec<f64>> = None;
+        for frame in 0..frames {
+            let (_, solid) = s.frame("solid_stress", frame).unwrap();
+            let (_, phi) = s.frame("solid_fraction", frame).unwrap();
+            let (_, t) = s.frame("temperature", frame).unwrap();
+            let (_, ep) = s.frame("plastic_strain", frame).unwrap();
+            let (_, d) = s.frame("damage", frame).unwrap();
+            for p in 0..ep.len() {
+                if ep[p].is_nan() {
+                    continue; // not underfill
+                }
+                let c = &solid[9 * p..9 * p + 9];
+                let (xx, xy, yy, zz) = (c[0], c[1], c[3], c[8]);
+                let q = (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2))
+                    + 3.0 * xy * xy)
+                    .sqrt();
+                let bound = phi[p].clamp(0.0, 1.0) * flow_stress(ep[p], t[p]);
+                assert!(
+                    q <= bound * (1.0 + 1e-6) + 1.0,
+                    "{stage} frame {frame} particle {p}: von Mises {q:e} above {bound:e}"
+                );
+                assert!(
+                    d[p] >= 0.0 && d[p] <= ep[p] / 0.01 + 1e-12,
+                    "{} {}",
+                    d[p],
+                    ep[p]
+                );
+                if ep[p] > 0.0 {
+                    yielded += 1;
+                }
+            }
+            if let (Some(a), Some(b)) = (&last_strain, &last_damage) {
+                for p in 0..ep.len() {
+                    if !ep[p].is_nan() {
+                        assert!(ep[p] >= a[p] && d[p] >= b[p], "{stage} frame {frame}");
+                    }
+                }
+            }
+            last_strain = Some(ep);
+            last_damage = Some(d);
+        }
+        let store_peak = last_damage
+            .unwrap()
+            .into_iter()
+            .filter(|v| !v.is_nan())
+            .fold(0.0, f64::max);
+        let summary = metrics["stages"][index]["damage"]["underfill"]["peak"]
+            .as_f64()
+            .unwrap();
+        assert_eq!(summary, store_peak, "{stage}");
+    }
+    assert!(yielded > 0, "no underfill particle yielded");
+}
+
+/// Bad plasticity constants are refused at their JSON path before anything runs.
+#[test]
+fn bad_solid_plasticity_is_refused_at_its_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example("underfill-process-2d.json");
+    for (set, path) in [
+        (
+            "materials.underfill.solid.plasticity.flow_stress.yield_stress=-1",
+            "materials.underfill.solid.plasticity.flow_stress.yield_stress",
+        ),
+        (
+            "materials.underfill.solid.plasticity.flow_stress.melt_temperature=200",
+            "materials.underfill.solid.plasticity.flow_stress.melt_temperature",
+        ),
+        (
+            "materials.underfill.solid.plasticity.damage.d2=-0.01",
+            "materials.underfill.solid.plasticity.damage",
+        ),
+    ] {
+        let out = mpm(
+            &["validate", scene.to_str().unwrap(), "--set", set],
+            dir.path(),
+        );
+        assert!(!out.status.success(), "{set}");
+        assert!(text(&out).contains(path), "{set}: {}", text(&out));
+    }
+}

@@ -6,6 +6,7 @@
 
 pub mod boundary;
 pub mod checkpoint;
+pub mod damage_measures;
 pub mod energy_ledger;
 pub mod grid;
 pub mod kernels;

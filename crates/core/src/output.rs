@@ -99,6 +99,10 @@ pub struct StageSummary {
     /// peak does not; `stress_measures.rs`).
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub averaged_von_mises: std::collections::BTreeMap<String, f64>,
+    /// Damage at the stage's end of each material whose law keeps damage
+    /// (`damage_measures.rs`): the largest, and the failed particles and their volume.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub damage: std::collections::BTreeMap<String, crate::damage_measures::DamageFigures>,
 }
 
 /// One output frame. `values[i]` holds field `i` for every particle in output order,

@@ -1,11 +1,12 @@
 //! Johnson–Cook damage: D grows by Δεₚ/ε_f with the failure strain
 //! ε_f = [D1 + D2 exp(D3 σ*)][1 + D4 ln ε̇*][1 + D5 T*].
 
+use mpm_core::scene::Issue;
 use schemars::JsonSchema;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// What a particle does once its damage reaches 1.
-#[derive(Clone, Copy, Debug, Default, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, JsonSchema, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum FailureMode {
     /// Keeps only compressive pressure: no tension and no shear (the usual choice; failed
@@ -17,7 +18,7 @@ pub enum FailureMode {
 }
 
 /// Johnson–Cook failure constants (D1…D5 in the literature).
-#[derive(Clone, Copy, Debug, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Damage {
     /// D1: failure strain offset.
@@ -41,6 +42,35 @@ pub struct Damage {
 const MIN_FAILURE_STRAIN: f64 = 1e-6;
 
 impl Damage {
+    /// Every problem with the constants, with JSON paths below `path` (the section's own).
+    pub fn check(&self, path: &str) -> Vec<Issue> {
+        let mut issues = Vec::new();
+        for (name, value) in [
+            ("d1", self.d1),
+            ("d2", self.d2),
+            ("d3", self.d3),
+            ("d4", self.d4),
+            ("d5", self.d5),
+        ] {
+            if !value.is_finite() {
+                issues.push(Issue::new(
+                    format!("{path}.{name}"),
+                    format!("must be finite (got {value})"),
+                ));
+            }
+        }
+        if self.d1 + self.d2 <= 0.0 {
+            issues.push(Issue::new(
+                path.to_string(),
+                format!(
+                    "d1 + d2 is the failure strain in pure shear and must be > 0 (got {})",
+                    self.d1 + self.d2
+                ),
+            ));
+        }
+        issues
+    }
+
     /// Failure strain at stress triaxiality `triaxiality` (mean stress over von Mises
     /// stress), plastic strain rate ratio `rate_ratio` = ε̇/ε̇₀ and homologous temperature.
     pub fn failure_strain(&self, triaxiality: f64, rate_ratio: f64, homologous: f64) -> f64 {

@@ -1,10 +1,11 @@
 //! Johnson–Cook flow stress σ_y = (A + B εₚⁿ)(1 + C ln ε̇*)(1 − T*ᵐ).
 
+use mpm_core::scene::Issue;
 use schemars::JsonSchema;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Constants of the Johnson–Cook flow stress.
-#[derive(Clone, Copy, Debug, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FlowStress {
     /// A: initial yield stress at the reference rate and room temperature, Pa.
@@ -31,6 +32,47 @@ fn one() -> f64 {
 }
 
 impl FlowStress {
+    /// Every problem with the constants, with JSON paths below `path` (the section's own).
+    pub fn check(&self, path: &str) -> Vec<Issue> {
+        let mut issues = Vec::new();
+        let mut require = |name: &str, value: f64, zero_allowed: bool| {
+            let ok = value.is_finite() && (value > 0.0 || (zero_allowed && value == 0.0));
+            if !ok {
+                let bound = if zero_allowed { ">= 0" } else { "> 0" };
+                issues.push(Issue::new(
+                    format!("{path}.{name}"),
+                    format!("must be a finite number {bound} (got {value})"),
+                ));
+            }
+        };
+        require("yield_stress", self.yield_stress, false);
+        require("hardening_exponent", self.hardening_exponent, false);
+        require(
+            "thermal_softening_exponent",
+            self.thermal_softening_exponent,
+            false,
+        );
+        require("reference_strain_rate", self.reference_strain_rate, false);
+        require("room_temperature", self.room_temperature, false);
+        require("melt_temperature", self.melt_temperature, false);
+        require("hardening_modulus", self.hardening_modulus, true);
+        require(
+            "strain_rate_sensitivity",
+            self.strain_rate_sensitivity,
+            true,
+        );
+        if self.melt_temperature <= self.room_temperature {
+            issues.push(Issue::new(
+                format!("{path}.melt_temperature"),
+                format!(
+                    "must exceed room_temperature ({} K) (got {} K)",
+                    self.room_temperature, self.melt_temperature
+                ),
+            ));
+        }
+        issues
+    }
+
     /// Homologous temperature T*, clamped to [0, 1].
     pub fn homologous_temperature(&self, temperature: f64) -> f64 {
         ((temperature - self.room_temperature) / (self.melt_temperature - self.room_temperature))

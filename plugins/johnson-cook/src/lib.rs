@@ -76,17 +76,7 @@ impl JohnsonCookParameters {
                 ));
             }
         };
-        let f = &self.flow_stress;
         positive("specific_heat", self.specific_heat);
-        positive("flow_stress.yield_stress", f.yield_stress);
-        positive("flow_stress.hardening_exponent", f.hardening_exponent);
-        positive(
-            "flow_stress.thermal_softening_exponent",
-            f.thermal_softening_exponent,
-        );
-        positive("flow_stress.reference_strain_rate", f.reference_strain_rate);
-        positive("flow_stress.room_temperature", f.room_temperature);
-        positive("flow_stress.melt_temperature", f.melt_temperature);
         if let EquationOfState::MieGruneisen {
             sound_speed,
             slope,
@@ -97,32 +87,10 @@ impl JohnsonCookParameters {
             positive("equation_of_state.slope", slope);
             positive("equation_of_state.gruneisen", gruneisen);
         }
-        let mut non_negative = |name: &str, value: f64| {
-            if !(value.is_finite() && value >= 0.0) {
-                issues.push(Issue::new(
-                    format!("{path}.{name}"),
-                    format!("must be a finite number >= 0 (got {value})"),
-                ));
-            }
-        };
-        non_negative("flow_stress.hardening_modulus", f.hardening_modulus);
-        non_negative(
-            "flow_stress.strain_rate_sensitivity",
-            f.strain_rate_sensitivity,
-        );
         if !(0.0..=1.0).contains(&self.taylor_quinney) {
             issues.push(Issue::new(
                 format!("{path}.taylor_quinney"),
                 format!("must lie in [0, 1] (got {})", self.taylor_quinney),
-            ));
-        }
-        if f.melt_temperature <= f.room_temperature {
-            issues.push(Issue::new(
-                format!("{path}.flow_stress.melt_temperature"),
-                format!(
-                    "must exceed room_temperature ({} K) (got {} K)",
-                    f.room_temperature, f.melt_temperature
-                ),
             ));
         }
         if let Some(t) = self.initial_temperature
@@ -133,30 +101,9 @@ impl JohnsonCookParameters {
                 format!("must be a finite temperature > 0 K (got {t})"),
             ));
         }
+        issues.extend(self.flow_stress.check(&format!("{path}.flow_stress")));
         if let Some(d) = &self.damage {
-            for (name, value) in [
-                ("d1", d.d1),
-                ("d2", d.d2),
-                ("d3", d.d3),
-                ("d4", d.d4),
-                ("d5", d.d5),
-            ] {
-                if !value.is_finite() {
-                    issues.push(Issue::new(
-                        format!("{path}.damage.{name}"),
-                        format!("must be finite (got {value})"),
-                    ));
-                }
-            }
-            if d.d1 + d.d2 <= 0.0 {
-                issues.push(Issue::new(
-                    format!("{path}.damage"),
-                    format!(
-                        "d1 + d2 is the failure strain in pure shear and must be > 0 (got {})",
-                        d.d1 + d.d2
-                    ),
-                ));
-            }
+            issues.extend(d.check(&format!("{path}.damage")));
         }
         issues
     }

@@ -14,6 +14,7 @@
 //! elastic K_l ln J; for dt ≫ τ a bulk viscosity K_l τ, and the liquid keeps next to no
 //! pressure from one static step to the next.
 
+use crate::mixture_plasticity::{self, PlasticState, SolidPlasticity};
 use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, TangentBatch,
     lame_parameters,
@@ -44,6 +45,9 @@ pub struct SolidPhase {
     pub youngs_modulus: f64,
     /// Poisson's ratio, in (-1, 0.5).
     pub poisson_ratio: f64,
+    /// J2 plasticity and damage of the solid (`mixture_plasticity.rs`); absent: elastic.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plasticity: Option<SolidPlasticity>,
 }
 
 /// The liquid phase: Newtonian viscosity and a bulk modulus (weak compressibility).
@@ -84,6 +88,9 @@ impl PhaseMixtureParameters {
                     format!("must be a finite number >= 0 (got {v})"),
                 ));
             }
+        }
+        if let Some(p) = &self.solid.plasticity {
+            issues.extend(p.check(&format!("{path}.solid.plasticity")));
         }
         if let Some(tau) = self.liquid.pressure_relaxation_time
             && !(tau.is_finite() && tau > 0.0)
@@ -141,41 +148,68 @@ pub struct PhaseMixture {
     params: PhaseMixtureParameters,
     lambda: f64,
     mu: f64,
-    fields: [FieldSpec; 3],
-    /// Fields in use: the third (the liquid's relaxing pressure) only with relaxation.
-    field_count: usize,
+    /// `previous_F`, `solid_stress`, then `liquid_pressure` with relaxation, then
+    /// `plastic_strain` and `damage` as the solid's plasticity asks.
+    fields: Vec<FieldSpec>,
+    /// Where the optional fields sit in `fields`.
+    slots: Slots,
+    /// `solid_fraction`, and `temperature` with plasticity.
+    reads: Vec<SharedRead>,
+}
+
+/// Positions of the optional state fields.
+#[derive(Clone, Copy, Debug)]
+struct Slots {
+    pressure: Option<usize>,
+    plastic_strain: Option<usize>,
+    damage: Option<usize>,
 }
 
 impl PhaseMixture {
     /// The law for checked parameters.
     pub fn new(params: PhaseMixtureParameters) -> Self {
         let (lambda, mu) = lame_parameters(params.solid.youngs_modulus, params.solid.poisson_ratio);
+        let field = |name, components, initial| FieldSpec {
+            name,
+            components,
+            initial,
+        };
+        let mut fields = vec![
+            field("previous_F", 9, FieldInit::Identity),
+            field("solid_stress", 9, FieldInit::Zero),
+        ];
+        let mut add = |wanted: bool, name| {
+            wanted.then(|| {
+                fields.push(field(name, 1, FieldInit::Zero));
+                fields.len() - 1
+            })
+        };
+        let plastic = params.solid.plasticity;
+        let slots = Slots {
+            pressure: add(
+                params.liquid.pressure_relaxation_time.is_some(),
+                "liquid_pressure",
+            ),
+            plastic_strain: add(plastic.is_some(), "plastic_strain"),
+            damage: add(plastic.is_some_and(|p| p.damage.is_some()), "damage"),
+        };
+        let mut reads = vec![SharedRead {
+            name: "solid_fraction",
+            required: true,
+        }];
+        if plastic.is_some() {
+            reads.push(SharedRead {
+                name: "temperature",
+                required: false,
+            });
+        }
         Self {
             params,
             lambda,
             mu,
-            fields: [
-                FieldSpec {
-                    name: "previous_F",
-                    components: 9,
-                    initial: FieldInit::Identity,
-                },
-                FieldSpec {
-                    name: "solid_stress",
-                    components: 9,
-                    initial: FieldInit::Zero,
-                },
-                FieldSpec {
-                    name: "liquid_pressure",
-                    components: 1,
-                    initial: FieldInit::Zero,
-                },
-            ],
-            field_count: if params.liquid.pressure_relaxation_time.is_some() {
-                3
-            } else {
-                2
-            },
+            fields,
+            slots,
+            reads,
         }
     }
 }
@@ -192,19 +226,23 @@ impl ConstitutiveLaw for PhaseMixture {
     }
 
     fn state_fields(&self) -> &[FieldSpec] {
-        &self.fields[..self.field_count]
+        &self.fields
     }
 
     fn shared_reads(&self) -> &[SharedRead] {
-        &[SharedRead {
-            name: "solid_fraction",
-            required: true,
-        }]
+        &self.reads
     }
 
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
-        let [previous, solid, pressure, ..] = batch.state.fields;
+        let mut fields = batch.state.fields;
+        let mut take = |slot: Option<usize>| slot.map(|i| std::mem::take(&mut fields[i]));
+        let pressure = take(self.slots.pressure).unwrap_or_default();
+        let plastic_strain = take(self.slots.plastic_strain).unwrap_or_default();
+        let damage = take(self.slots.damage).unwrap_or_default();
+        let [previous, solid, ..] = fields;
         let fraction = batch.shared[0];
+        let temperature = batch.shared[1];
+        let plasticity = self.params.solid.plasticity;
         let (lambda, mu) = (self.lambda, self.mu);
         let (eta, bulk) = (
             self.params.liquid.viscosity,
@@ -229,7 +267,30 @@ impl ConstitutiveLaw for PhaseMixture {
             let mut s: Matrix<D> = load(&solid[9 * k..9 * k + 9]);
             s += spin * s - s * spin;
             s += (identity * (lambda * strain.trace()) + strain * (2.0 * mu)) * phi;
-            store(&mut solid[9 * k..9 * k + 9], &s);
+            if let Some(plastic) = &plasticity {
+                let slot = &mut solid[9 * k..9 * k + 9];
+                let zz = slot[8] + phi * lambda * strain.trace();
+                let mut s3 = mixture_plasticity::embed(&s, zz);
+                plastic.apply(
+                    &mut s3,
+                    phi,
+                    mu,
+                    temperature.get(k).copied(),
+                    batch.dt,
+                    PlasticState {
+                        strain: &mut plastic_strain[k],
+                        damage: damage.get_mut(k),
+                    },
+                );
+                let (in_plane, zz) = mixture_plasticity::project::<D>(&s3);
+                s = in_plane;
+                store(slot, &s);
+                if D == 2 {
+                    slot[8] = zz;
+                }
+            } else {
+                store(&mut solid[9 * k..9 * k + 9], &s);
+            }
             let ln_j = determinant(f).max(1e-300).ln();
             let mean = if tau.is_some() {
                 let ln_j_prev = determinant(&f_prev).max(1e-300).ln();
@@ -263,8 +324,10 @@ impl ConstitutiveLaw for PhaseMixture {
         }
     }
 
+    /// Analytic for the elastic solid; with plasticity the implicit mode differences the
+    /// update (the return map's consistent tangent is not written out).
     fn has_stress_derivative(&self) -> bool {
-        true
+        self.params.solid.plasticity.is_none()
     }
 
     /// The derivative of the update from the step's starting state (F₀ = `previous_F`,

@@ -111,6 +111,7 @@ fn test_mixture(tau: Option<f64>) -> crate::mixture::PhaseMixture {
         solid: SolidPhase {
             youngs_modulus: 8e9,
             poisson_ratio: 0.3,
+            plasticity: None,
         },
         liquid: LiquidPhase {
             viscosity: 10.0,

@@ -8,6 +8,7 @@ use super::hand_over;
 use super::simulation::Simulation;
 use super::{DimensionDispatch, RunError, RunObserver, SimulationVisitor, dispatch};
 use crate::checkpoint::Checkpoint;
+use crate::damage_measures::{DamageFigures, damage_figures};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{Metrics, Outcome, OutputSink, StageInfo, StageSummary};
@@ -48,6 +49,7 @@ pub(super) fn run_stages(
                     .averaging_radius
                     .map(|r| averaged_peak_von_mises(&sim.particles, r))
                     .unwrap_or_default(),
+                damage: damage_figures(&sim.particles),
             };
             Ok((metrics, end, figures))
         }
@@ -134,6 +136,7 @@ pub(super) fn run_stages(
             physics: metrics.physics.clone(),
             peak_von_mises: stress.peak,
             averaged_von_mises: stress.averaged,
+            damage: stress.damage,
         });
         steps_before = metrics.steps;
         let finished = metrics.outcome == Some(Outcome::Finished);
@@ -155,10 +158,12 @@ pub(super) fn run_stages(
     Ok(last)
 }
 
-/// The stress figures of a stage's end, per material (`stress_measures`).
+/// The stress and damage figures of a stage's end, per material (`stress_measures`,
+/// `damage_measures`).
 struct StressFigures {
     peak: BTreeMap<String, f64>,
     averaged: BTreeMap<String, f64>,
+    damage: BTreeMap<String, DamageFigures>,
 }
 
 /// The stage a checkpoint of a staged run was written in, and the summaries of the stages

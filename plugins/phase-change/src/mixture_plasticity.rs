@@ -1,0 +1,340 @@
+//! Plasticity and damage of the cured solid of `phase_mixture` (`solid.plasticity`): J2
+//! plasticity with a Johnson–Cook flow stress and, optionally, Johnson–Cook damage, so one
+//! law carries a thermoset from liquid through cure to the ductile failure its cured solid
+//! shows in thermal cycling (a crack from a void, say).
+//!
+//! The solid stress is hypoelastic (see `mixture.rs`), so the return is the small-strain
+//! radial return on it: the trial stress's deviator is scaled back onto the yield surface
+//! q = φ·σ_y(εₚ, ε̇ₚ, T), the solid's share φ of the flow stress, with the solid's shear
+//! modulus φμ (the share its stress increments carry). Its mean stress is left as it is
+//! (J2 flow is isochoric). Damage grows by Δεₚ/ε_f at the triaxiality mean/q; a particle at
+//! damage 1 keeps only a compressive mean stress (`no_tension`) or none (`no_stress`), as the
+//! `johnson_cook` law's failed particles do.
+//!
+//! A 2D solid needs its out-of-plane stress for the von Mises stress of plane strain: the
+//! law keeps σ_zz in the last slot of its `solid_stress` state (unused by the 2×2 stress),
+//! raised by φλ·tr(Δε) per step (Δε_zz = 0) and returned with the rest. Under
+//! `solver.free_strain_2d: "plane_strain"` the held out-of-plane free strain reaches σ_zz
+//! only through the in-plane (1 + ν) factor, so σ_zz is then approximate.
+
+use mpm_core::math::Matrix;
+use mpm_core::scene::Issue;
+use mpm_johnson_cook::{Damage, FailureMode, FlowStress};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Scene section `solid.plasticity` of a `phase_mixture` material.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SolidPlasticity {
+    /// Johnson–Cook flow stress of the fully cured solid (the law takes the solid
+    /// fraction's share of it); its temperatures are the scene's (K).
+    pub flow_stress: FlowStress,
+    /// Johnson–Cook damage and failure; without it no particle fails.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damage: Option<Damage>,
+}
+
+impl SolidPlasticity {
+    /// Every problem with the constants, with JSON paths below `path`.
+    pub fn check(&self, path: &str) -> Vec<Issue> {
+        let mut issues = self.flow_stress.check(&format!("{path}.flow_stress"));
+        if let Some(d) = &self.damage {
+            issues.extend(d.check(&format!("{path}.damage")));
+        }
+        issues
+    }
+}
+
+/// What one particle's return starts from and keeps.
+pub(crate) struct PlasticState<'a> {
+    /// Accumulated equivalent plastic strain.
+    pub strain: &'a mut f64,
+    /// Damage in [0, 1]; `None` without a damage model.
+    pub damage: Option<&'a mut f64>,
+}
+
+impl SolidPlasticity {
+    /// Returns the trial solid stress `s` (3×3; in 2D with σ_zz in place) onto the yield
+    /// surface of solid fraction `phi` with shear modulus `mu` at `temperature` over `dt`,
+    /// then applies damage and failure. Leaves an elastic stress below yield unchanged.
+    pub(crate) fn apply(
+        &self,
+        s: &mut Matrix<3>,
+        phi: f64,
+        mu: f64,
+        temperature: Option<f64>,
+        dt: f64,
+        state: PlasticState<'_>,
+    ) {
+        let PlasticState { strain, damage } = state;
+        let failed = damage.as_deref().is_some_and(|d| *d >= 1.0);
+        let mean = s.trace() / 3.0;
+        let deviator = *s - Matrix::<3>::identity() * mean;
+        if failed {
+            *s = self.failed_stress(mean);
+            return;
+        }
+        // A particle with next to no solid carries next to no solid stress.
+        if phi <= 1e-9 {
+            return;
+        }
+        let flow = &self.flow_stress;
+        let thermal = temperature.map_or(1.0, |t| flow.thermal_factor(t));
+        let q_trial = (1.5 * deviator.norm_squared()).sqrt();
+        let yield_now = phi * flow.evaluate(*strain, 0.0, thermal).0;
+        if q_trial <= yield_now {
+            return;
+        }
+        let increment = self.return_map(q_trial, phi, mu, *strain, thermal, dt);
+        let scale = (1.0 - 3.0 * phi * mu * increment / q_trial).max(0.0);
+        let q = q_trial * scale;
+        *strain += increment;
+        *s = deviator * scale + Matrix::<3>::identity() * mean;
+        let (Some(d), Some(model)) = (damage, &self.damage) else {
+            return;
+        };
+        let triaxiality = if q > 0.0 {
+            (mean / q).clamp(-10.0, 10.0)
+        } else {
+            0.0
+        };
+        let rate_ratio = if dt > 0.0 {
+            increment / dt / flow.reference_strain_rate
+        } else {
+            1.0
+        };
+        let homologous = temperature.map_or(0.0, |t| flow.homologous_temperature(t));
+        let failure_strain = model.failure_strain(triaxiality, rate_ratio, homologous);
+        *d = (*d + increment / failure_strain).min(1.0);
+        if *d >= 1.0 {
+            *s = self.failed_stress(mean);
+        }
+    }
+
+    /// The stress a failed particle keeps of mean stress `mean`.
+    fn failed_stress(&self, mean: f64) -> Matrix<3> {
+        let mode = self.damage.map(|d| d.failure).unwrap_or_default();
+        match mode {
+            FailureMode::NoTension => Matrix::<3>::identity() * mean.min(0.0),
+            FailureMode::NoStress => Matrix::<3>::zeros(),
+        }
+    }
+
+    /// Plastic strain increment x with q_trial − 3φμx = φσ_y(εₚ + x, x/dt): Newton's method
+    /// kept inside a bracket (the left side falls, the right side rises with x).
+    fn return_map(
+        &self,
+        q_trial: f64,
+        phi: f64,
+        mu: f64,
+        strain: f64,
+        thermal: f64,
+        dt: f64,
+    ) -> f64 {
+        let flow = &self.flow_stress;
+        let stiffness = 3.0 * phi * mu;
+        let yield0 = phi * flow.evaluate(strain, 0.0, thermal).0;
+        let mut hi = ((q_trial - yield0) / stiffness).max(0.0);
+        let mut lo = 0.0;
+        let mut x = hi;
+        let rate = |x: f64| if dt > 0.0 { x / dt } else { 0.0 };
+        for _ in 0..60 {
+            let (s, ds_dstrain, ds_drate) = flow.evaluate(strain + x, rate(x), thermal);
+            let g = q_trial - stiffness * x - phi * s;
+            if g.abs() <= 1e-12 * q_trial {
+                break;
+            }
+            if g > 0.0 {
+                lo = x;
+            } else {
+                hi = x;
+            }
+            let d_rate = if dt > 0.0 { ds_drate / dt } else { 0.0 };
+            let slope = -stiffness - phi * (ds_dstrain + d_rate);
+            let mut next = x - g / slope;
+            if !(next.is_finite() && next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            x = next;
+            if hi - lo <= 1e-15 * hi {
+                break;
+            }
+        }
+        x
+    }
+}
+
+/// The 3×3 solid stress of a D×D one and its out-of-plane slot (2D: σ_zz; 3D: unused).
+pub(crate) fn embed<const D: usize>(s: &Matrix<D>, zz: f64) -> Matrix<3> {
+    let mut out = Matrix::<3>::zeros();
+    for r in 0..D {
+        for c in 0..D {
+            out[(r, c)] = s[(r, c)];
+        }
+    }
+    if D == 2 {
+        out[(2, 2)] = zz;
+    }
+    out
+}
+
+/// The D×D part of a 3×3 stress, and its σ_zz (for a 2D law's state).
+pub(crate) fn project<const D: usize>(s: &Matrix<3>) -> (Matrix<D>, f64) {
+    let mut out = Matrix::<D>::zeros();
+    for r in 0..D {
+        for c in 0..D {
+            out[(r, c)] = s[(r, c)];
+        }
+    }
+    (out, s[(2, 2)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn law(damage: Option<Damage>) -> SolidPlasticity {
+        SolidPlasticity {
+            flow_stress: FlowStress {
+                yield_stress: 50e6,
+                hardening_modulus: 0.0,
+                hardening_exponent: 1.0,
+                strain_rate_sensitivity: 0.0,
+                thermal_softening_exponent: 1.0,
+                reference_strain_rate: 1.0,
+                room_temperature: 298.0,
+                melt_temperature: 423.0,
+            },
+            damage,
+        }
+    }
+
+    fn elastic_state(strain: &mut f64) -> PlasticState<'_> {
+        PlasticState {
+            strain,
+            damage: None,
+        }
+    }
+
+    fn von_mises(s: &Matrix<3>) -> f64 {
+        let dev = s - Matrix::<3>::identity() * (s.trace() / 3.0);
+        (1.5 * dev.norm_squared()).sqrt()
+    }
+
+    /// Perfect plasticity: a trial stress above yield comes back to the yield surface with
+    /// its mean stress, and the plastic strain is the overshoot over 3φμ.
+    #[test]
+    fn the_return_lands_on_the_yield_surface_with_the_mean_stress_kept() {
+        let (mu, phi) = (3e9, 0.8);
+        let mut s = Matrix::<3>::new(120e6, 30e6, 0.0, 30e6, -40e6, 0.0, 0.0, 0.0, 10e6);
+        let mean = s.trace() / 3.0;
+        let q_trial = von_mises(&s);
+        let mut strain = 0.0;
+        law(None).apply(
+            &mut s,
+            phi,
+            mu,
+            None,
+            1.0,
+            PlasticState {
+                strain: &mut strain,
+                damage: None,
+            },
+        );
+        assert!((von_mises(&s) - phi * 50e6).abs() < 1e-6 * 50e6);
+        assert!((s.trace() / 3.0 - mean).abs() < 1e-6);
+        let expected = (q_trial - phi * 50e6) / (3.0 * phi * mu);
+        assert!((strain - expected).abs() < 1e-9 * expected);
+    }
+
+    /// Below yield nothing changes; softening near the "melt" temperature brings the
+    /// same stress to yield.
+    #[test]
+    fn an_elastic_stress_stays_and_heat_softens_the_solid() {
+        let s0 = Matrix::<3>::new(40e6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut strain = 0.0;
+        let mut s = s0;
+        law(None).apply(
+            &mut s,
+            1.0,
+            3e9,
+            Some(298.0),
+            1.0,
+            elastic_state(&mut strain),
+        );
+        assert_eq!(s, s0);
+        assert_eq!(strain, 0.0);
+        // T* = 0.5 halves the flow stress to 25 MPa.
+        law(None).apply(
+            &mut s,
+            1.0,
+            3e9,
+            Some(360.5),
+            1.0,
+            elastic_state(&mut strain),
+        );
+        assert!((von_mises(&s) - 25e6).abs() < 1e-6 * 25e6);
+        assert!(strain > 0.0);
+    }
+
+    /// Damage adds Δεₚ/ε_f; at 1 the particle keeps only a compressive mean stress.
+    #[test]
+    fn damage_accumulates_and_a_failed_particle_holds_no_tension() {
+        let damage = Damage {
+            d1: 0.01,
+            d2: 0.0,
+            d3: 0.0,
+            d4: 0.0,
+            d5: 0.0,
+            failure: FailureMode::NoTension,
+        };
+        let law = law(Some(damage));
+        let mu = 3e9;
+        // Uniaxial tension trial 53 MPa: overshoot 3 MPa, Δεₚ = 3e6/9e9.
+        let mut s = Matrix::<3>::new(53e6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut strain, mut d) = (0.0, 0.0);
+        law.apply(
+            &mut s,
+            1.0,
+            mu,
+            None,
+            1.0,
+            PlasticState {
+                strain: &mut strain,
+                damage: Some(&mut d),
+            },
+        );
+        assert!((d - strain / 0.01).abs() < 1e-12);
+        assert!(d > 0.0 && d < 1.0);
+        // A large overshoot fails it: tension gone, no shear left.
+        let mut s = Matrix::<3>::new(900e6, 5e6, 0.0, 5e6, 0.0, 0.0, 0.0, 0.0, 0.0);
+        law.apply(
+            &mut s,
+            1.0,
+            mu,
+            None,
+            1.0,
+            PlasticState {
+                strain: &mut strain,
+                damage: Some(&mut d),
+            },
+        );
+        assert_eq!(d, 1.0);
+        assert_eq!(s, Matrix::<3>::zeros());
+        // In compression a failed particle keeps its mean stress only.
+        let mut s = Matrix::<3>::new(-90e6, 5e6, 0.0, 5e6, -30e6, 0.0, 0.0, 0.0, 0.0);
+        law.apply(
+            &mut s,
+            1.0,
+            mu,
+            None,
+            1.0,
+            PlasticState {
+                strain: &mut strain,
+                damage: Some(&mut d),
+            },
+        );
+        assert_eq!(s, Matrix::<3>::identity() * (-40e6));
+    }
+}
