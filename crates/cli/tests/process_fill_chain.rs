@@ -142,3 +142,61 @@ fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
         .unwrap();
     assert!(fill_time.abs() < 0.10, "fill time off by {fill_time}");
 }
+
+/// The whole chain: the cured underfill cracks from the void the fill trapped during the
+/// first thermal cycle and the crack grows every cycle (README, "From the fill on": first
+/// failure at 3,900 s at x = 0.503 mm, y = 0.138 mm; 37 / 62 / 85 failed particles after the
+/// cycles), and each stage's `damage` summary agrees with its store.
+#[test]
+fn the_chain_cracks_from_its_void_in_the_first_cycle_and_the_crack_grows() {
+    let dir = tempfile::tempdir().unwrap();
+    let metrics = run_scene_json(dir.path(), "chain", &process_scene());
+    let stages = metrics["stages"].as_array().unwrap();
+    let failed = |name: &str| {
+        let s = stages.iter().find(|s| s["name"] == name).unwrap();
+        assert_eq!(s["outcome"], "finished", "{name}");
+        s["damage"]["underfill"]["failed_particles"]
+            .as_u64()
+            .unwrap()
+    };
+    assert_eq!(failed("cool"), 0, "cracked before the cycles");
+    let per_cycle = ["cycle-1", "cycle-2", "cycle-3"].map(failed);
+    assert!(
+        per_cycle[0] > 0 && per_cycle[1] > per_cycle[0] && per_cycle[2] > per_cycle[1],
+        "failed particles per cycle {per_cycle:?}"
+    );
+    // The first particles to fail sit within two cells (20 µm) of the void the fill trapped.
+    let root = dir.path().join("chain/underfill-process-2d.zarr");
+    let store = ResultStore::open(&root).unwrap().stage("cycle-1").unwrap();
+    let (columns, rows) = ResultStore::open(&root)
+        .unwrap()
+        .stage("fill")
+        .unwrap()
+        .table("underfill_voids")
+        .unwrap()
+        .unwrap();
+    let col = |name: &str| columns.iter().position(|c| c == name).unwrap();
+    let void = [rows[0][col("x")], rows[0][col("y")]];
+    let first = (0..store.frame_count().unwrap())
+        .find_map(|frame| {
+            let damage = store.frame("damage", frame).unwrap().1;
+            let x = store.frame("x", frame).unwrap().1;
+            let failed: Vec<[f64; 2]> = (0..damage.len())
+                .filter(|&p| damage[p] >= 1.0)
+                .map(|p| [x[2 * p], x[2 * p + 1]])
+                .collect();
+            (!failed.is_empty()).then_some(failed)
+        })
+        .expect("no particle failed in the first cycle");
+    for p in &first {
+        let distance = ((p[0] - void[0]).powi(2) + (p[1] - void[1]).powi(2)).sqrt();
+        assert!(distance < 20e-6, "first failure at {p:?}, void at {void:?}");
+    }
+    // The summary counts what the store holds at the stage's end.
+    let last = store
+        .frame("damage", store.frame_count().unwrap() - 1)
+        .unwrap()
+        .1;
+    let in_store = last.iter().filter(|&&d| d >= 1.0).count() as u64;
+    assert_eq!(in_store, per_cycle[0]);
+}

@@ -23,6 +23,11 @@ use mpm_johnson_cook::{Damage, FailureMode, FlowStress};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+/// The share of its stress increments a failed particle keeps beyond what its failure mode
+/// allows: without it a node among failed particles in tension has no stiffness at all and
+/// an implicit static step cannot converge.
+pub const RESIDUAL_STIFFNESS: f64 = 1e-3;
+
 /// Scene section `solid.plasticity` of a `phase_mixture` material.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -33,6 +38,11 @@ pub struct SolidPlasticity {
     /// Johnson–Cook damage and failure; without it no particle fails.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub damage: Option<Damage>,
+    /// Seconds over which a failed particle sheds the stress its failure mode does not
+    /// allow (a viscous regularisation: an implicit static step cannot follow a stress
+    /// that drops at once, as a crack that opens does); absent: at once.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure_time: Option<f64>,
 }
 
 impl SolidPlasticity {
@@ -41,6 +51,19 @@ impl SolidPlasticity {
         let mut issues = self.flow_stress.check(&format!("{path}.flow_stress"));
         if let Some(d) = &self.damage {
             issues.extend(d.check(&format!("{path}.damage")));
+        }
+        if let Some(t) = self.failure_time {
+            if !(t.is_finite() && t > 0.0) {
+                issues.push(Issue::new(
+                    format!("{path}.failure_time"),
+                    format!("must be a finite number > 0 seconds (got {t})"),
+                ));
+            } else if self.damage.is_none() {
+                issues.push(Issue::new(
+                    format!("{path}.failure_time"),
+                    "needs `damage`: without it no particle fails".to_string(),
+                ));
+            }
         }
         issues
     }
@@ -72,7 +95,7 @@ impl SolidPlasticity {
         let mean = s.trace() / 3.0;
         let deviator = *s - Matrix::<3>::identity() * mean;
         if failed {
-            *s = self.failed_stress(mean);
+            *s = self.failed_stress(s, dt);
             return;
         }
         // A particle with next to no solid carries next to no solid stress.
@@ -108,17 +131,22 @@ impl SolidPlasticity {
         let failure_strain = model.failure_strain(triaxiality, rate_ratio, homologous);
         *d = (*d + increment / failure_strain).min(1.0);
         if *d >= 1.0 {
-            *s = self.failed_stress(mean);
+            *s = self.failed_stress(s, dt);
         }
     }
 
-    /// The stress a failed particle keeps of mean stress `mean`.
-    fn failed_stress(&self, mean: f64) -> Matrix<3> {
+    /// The stress a failed particle keeps of its trial stress `s` over a step `dt`: the
+    /// compressive mean stress (`no_tension`) or nothing (`no_stress`), plus of the rest
+    /// e^(−dt/failure_time) (without `failure_time`, nothing), and never less than
+    /// [`RESIDUAL_STIFFNESS`] of it.
+    fn failed_stress(&self, s: &Matrix<3>, dt: f64) -> Matrix<3> {
         let mode = self.damage.map(|d| d.failure).unwrap_or_default();
-        match mode {
-            FailureMode::NoTension => Matrix::<3>::identity() * mean.min(0.0),
+        let kept = match mode {
+            FailureMode::NoTension => Matrix::<3>::identity() * (s.trace() / 3.0).min(0.0),
             FailureMode::NoStress => Matrix::<3>::zeros(),
-        }
+        };
+        let decay = self.failure_time.map_or(0.0, |t| (-dt / t).exp());
+        kept + (s - kept) * decay.max(RESIDUAL_STIFFNESS)
     }
 
     /// Plastic strain increment x with q_trial − 3φμx = φσ_y(εₚ + x, x/dt): Newton's method
@@ -207,6 +235,7 @@ mod tests {
                 melt_temperature: 423.0,
             },
             damage,
+            failure_time: None,
         }
     }
 
@@ -307,7 +336,7 @@ mod tests {
         );
         assert!((d - strain / 0.01).abs() < 1e-12);
         assert!(d > 0.0 && d < 1.0);
-        // A large overshoot fails it: tension gone, no shear left.
+        // A large overshoot fails it: tension and shear gone but for the residual share.
         let mut s = Matrix::<3>::new(900e6, 5e6, 0.0, 5e6, 0.0, 0.0, 0.0, 0.0, 0.0);
         law.apply(
             &mut s,
@@ -321,9 +350,11 @@ mod tests {
             },
         );
         assert_eq!(d, 1.0);
-        assert_eq!(s, Matrix::<3>::zeros());
-        // In compression a failed particle keeps its mean stress only.
-        let mut s = Matrix::<3>::new(-90e6, 5e6, 0.0, 5e6, -30e6, 0.0, 0.0, 0.0, 0.0);
+        assert!(von_mises(&s) <= RESIDUAL_STIFFNESS * 50e6 * (1.0 + 1e-9));
+        assert!((s.trace() / 3.0 - RESIDUAL_STIFFNESS * 300e6).abs() < 1e-3);
+        // In compression a failed particle keeps its mean stress (and the residual share).
+        let trial = Matrix::<3>::new(-90e6, 5e6, 0.0, 5e6, -30e6, 0.0, 0.0, 0.0, 0.0);
+        let mut s = trial;
         law.apply(
             &mut s,
             1.0,
@@ -335,6 +366,44 @@ mod tests {
                 damage: Some(&mut d),
             },
         );
-        assert_eq!(s, Matrix::<3>::identity() * (-40e6));
+        let kept = Matrix::<3>::identity() * (-40e6);
+        assert!((s - (kept + (trial - kept) * RESIDUAL_STIFFNESS)).norm() < 1e-6);
+    }
+
+    /// With `failure_time` τ a failed particle sheds what its failure mode does not allow
+    /// by e^(−dt/τ) per step, instead of at once.
+    #[test]
+    fn a_failed_particle_sheds_its_tension_over_the_failure_time() {
+        let mut law = law(Some(Damage {
+            d1: 0.01,
+            d2: 0.0,
+            d3: 0.0,
+            d4: 0.0,
+            d5: 0.0,
+            failure: FailureMode::NoTension,
+        }));
+        law.failure_time = Some(2.0);
+        let trial = Matrix::<3>::new(30e6, 5e6, 0.0, 5e6, -6e6, 0.0, 0.0, 0.0, 0.0);
+        let mut s = trial;
+        let (mut strain, mut d) = (0.5, 1.0);
+        law.apply(
+            &mut s,
+            1.0,
+            3e9,
+            None,
+            1.0,
+            PlasticState {
+                strain: &mut strain,
+                damage: Some(&mut d),
+            },
+        );
+        // Mean 8 MPa is tension: nothing is kept, the whole trial decays by e^(−1/2).
+        assert!((s - trial * (-0.5f64).exp()).norm() < 1e-6);
+        let issues = SolidPlasticity {
+            failure_time: Some(-1.0),
+            ..law
+        }
+        .check("p");
+        assert_eq!(issues[0].path, "p.failure_time");
     }
 }
