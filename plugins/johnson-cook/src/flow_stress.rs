@@ -118,6 +118,50 @@ impl FlowStress {
         )
     }
 
+    /// The plastic strain increment x of a radial return: solves
+    /// q_trial − stiffness·x = share·σ_y(strain + x, x/dt) (stiffness 3μ, or 3φμ for a
+    /// solid fraction φ with share φ) by Newton's method kept inside a bracket (the left
+    /// side falls, the right side rises with x); `dt` = 0 counts no rate.
+    pub fn radial_return(
+        &self,
+        q_trial: f64,
+        stiffness: f64,
+        share: f64,
+        strain: f64,
+        thermal: f64,
+        dt: f64,
+    ) -> f64 {
+        let yield0 = share * self.evaluate(strain, 0.0, thermal).0;
+        // Perfectly plastic estimate: an upper bound, since the flow stress only rises.
+        let mut hi = ((q_trial - yield0) / stiffness).max(0.0);
+        let mut lo = 0.0;
+        let mut x = hi;
+        for _ in 0..60 {
+            let rate = if dt > 0.0 { x / dt } else { 0.0 };
+            let (s, ds_dstrain, ds_drate) = self.evaluate(strain + x, rate, thermal);
+            let g = q_trial - stiffness * x - share * s;
+            if g.abs() <= 1e-12 * q_trial {
+                break;
+            }
+            if g > 0.0 {
+                lo = x;
+            } else {
+                hi = x;
+            }
+            let d_rate = if dt > 0.0 { ds_drate / dt } else { 0.0 };
+            let slope = -stiffness - share * ds_dstrain - share * d_rate;
+            let mut next = x - g / slope;
+            if !(next.is_finite() && next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            x = next;
+            if hi - lo <= 1e-15 * hi {
+                break;
+            }
+        }
+        x
+    }
+
     /// Flow stress alone (see [`FlowStress::evaluate`]).
     pub fn value(&self, strain: f64, rate: f64, temperature: f64) -> f64 {
         self.evaluate(strain, rate, self.thermal_factor(temperature))

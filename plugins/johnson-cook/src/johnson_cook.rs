@@ -92,38 +92,12 @@ impl JohnsonCook {
     }
 
     /// Plastic strain increment that brings trial von Mises (Kirchhoff) stress `q_trial`
-    /// back to the flow stress: solves q_trial − 3μΔε = σ_y(εₚ + Δε, Δε/dt, T) by Newton's
-    /// method kept inside a bracket (the left side falls, the right side rises with Δε).
+    /// back to the flow stress: q_trial − 3μΔε = σ_y(εₚ + Δε, Δε/dt, T)
+    /// ([`crate::FlowStress::radial_return`]).
     pub(crate) fn return_map(&self, q_trial: f64, strain: f64, thermal: f64, dt: f64) -> f64 {
-        let flow = &self.params.flow_stress;
-        let three_mu = 3.0 * self.shear;
-        let yield0 = flow.evaluate(strain, 0.0, thermal).0;
-        // Perfectly plastic estimate: an upper bound, since the flow stress only rises.
-        let mut hi = ((q_trial - yield0) / three_mu).max(0.0);
-        let mut lo = 0.0;
-        let mut x = hi;
-        for _ in 0..60 {
-            let (s, ds_dstrain, ds_drate) = flow.evaluate(strain + x, x / dt, thermal);
-            let g = q_trial - three_mu * x - s;
-            if g.abs() <= 1e-12 * q_trial {
-                break;
-            }
-            if g > 0.0 {
-                lo = x;
-            } else {
-                hi = x;
-            }
-            let slope = -three_mu - ds_dstrain - ds_drate / dt;
-            let mut next = x - g / slope;
-            if !(next.is_finite() && next > lo && next < hi) {
-                next = 0.5 * (lo + hi);
-            }
-            x = next;
-            if hi - lo <= 1e-15 * hi {
-                break;
-            }
-        }
-        x
+        self.params
+            .flow_stress
+            .radial_return(q_trial, 3.0 * self.shear, 1.0, strain, thermal, dt)
     }
 }
 

@@ -109,7 +109,7 @@ impl SolidPlasticity {
         if q_trial <= yield_now {
             return;
         }
-        let increment = self.return_map(q_trial, phi, mu, *strain, thermal, dt);
+        let increment = flow.radial_return(q_trial, 3.0 * phi * mu, phi, *strain, thermal, dt);
         let scale = (1.0 - 3.0 * phi * mu * increment / q_trial).max(0.0);
         let q = q_trial * scale;
         *strain += increment;
@@ -147,49 +147,6 @@ impl SolidPlasticity {
         };
         let decay = self.failure_time.map_or(0.0, |t| (-dt / t).exp());
         kept + (s - kept) * decay.max(RESIDUAL_STIFFNESS)
-    }
-
-    /// Plastic strain increment x with q_trial − 3φμx = φσ_y(εₚ + x, x/dt): Newton's method
-    /// kept inside a bracket (the left side falls, the right side rises with x).
-    fn return_map(
-        &self,
-        q_trial: f64,
-        phi: f64,
-        mu: f64,
-        strain: f64,
-        thermal: f64,
-        dt: f64,
-    ) -> f64 {
-        let flow = &self.flow_stress;
-        let stiffness = 3.0 * phi * mu;
-        let yield0 = phi * flow.evaluate(strain, 0.0, thermal).0;
-        let mut hi = ((q_trial - yield0) / stiffness).max(0.0);
-        let mut lo = 0.0;
-        let mut x = hi;
-        let rate = |x: f64| if dt > 0.0 { x / dt } else { 0.0 };
-        for _ in 0..60 {
-            let (s, ds_dstrain, ds_drate) = flow.evaluate(strain + x, rate(x), thermal);
-            let g = q_trial - stiffness * x - phi * s;
-            if g.abs() <= 1e-12 * q_trial {
-                break;
-            }
-            if g > 0.0 {
-                lo = x;
-            } else {
-                hi = x;
-            }
-            let d_rate = if dt > 0.0 { ds_drate / dt } else { 0.0 };
-            let slope = -stiffness - phi * (ds_dstrain + d_rate);
-            let mut next = x - g / slope;
-            if !(next.is_finite() && next > lo && next < hi) {
-                next = 0.5 * (lo + hi);
-            }
-            x = next;
-            if hi - lo <= 1e-15 * hi {
-                break;
-            }
-        }
-        x
     }
 }
 
