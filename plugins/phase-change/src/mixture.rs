@@ -324,10 +324,8 @@ impl ConstitutiveLaw for PhaseMixture {
         }
     }
 
-    /// Analytic for the elastic solid; with plasticity the implicit mode differences the
-    /// update (the return map's consistent tangent is not written out).
     fn has_stress_derivative(&self) -> bool {
-        self.params.solid.plasticity.is_none()
+        true
     }
 
     /// The derivative of the update from the step's starting state (F₀ = `previous_F`,
@@ -336,9 +334,16 @@ impl ConstitutiveLaw for PhaseMixture {
     /// (b = 1 without pressure relaxation). Exact, and a product costs no stress update (the
     /// differences it replaces were accurate enough: the same Newton and Krylov counts on
     /// the cure example).
+    /// With `solid.plasticity` the solid part is the consistent tangent of its return
+    /// (`SolidPlasticity::derivative`) at the trial stress the update reaches.
     fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
-        let [previous, solid, ..] = batch.state.fields;
+        let fields = batch.state.fields;
+        let [previous, solid, ..] = fields;
+        let plastic_strain = self.slots.plastic_strain.map(|i| fields[i]);
+        let damage = self.slots.damage.map(|i| fields[i]);
+        let plasticity = self.params.solid.plasticity;
         let fraction = batch.shared[0];
+        let temperature = batch.shared[1];
         let (lambda, mu) = (self.lambda, self.mu);
         let (eta, bulk) = (
             self.params.liquid.viscosity,
@@ -360,8 +365,30 @@ impl ConstitutiveLaw for PhaseMixture {
             let d_increment = inverse(&f_prev).map_or(Matrix::<D>::zeros(), |inv| df * inv);
             let d_strain = (d_increment + d_increment.transpose()) * 0.5;
             let d_spin = (d_increment - d_increment.transpose()) * 0.5;
-            let d_solid = d_spin * s0 - s0 * d_spin
+            let mut d_solid = d_spin * s0 - s0 * d_spin
                 + (identity * (lambda * d_strain.trace()) + d_strain * (2.0 * mu)) * phi;
+            if let (Some(plastic), Some(strains)) = (&plasticity, plastic_strain) {
+                // The update's trial stress at F, as `update_stress` builds it.
+                let increment = inverse(&f_prev).map_or(identity, |inv| f * inv);
+                let strain = (increment + increment.transpose()) * 0.5 - identity;
+                let spin = (increment - increment.transpose()) * 0.5;
+                let trial = s0 + spin * s0 - s0 * spin
+                    + (identity * (lambda * strain.trace()) + strain * (2.0 * mu)) * phi;
+                let zz = solid[9 * k + 8];
+                let trial3 = mixture_plasticity::embed(&trial, zz + phi * lambda * strain.trace());
+                let d_trial3 = mixture_plasticity::embed(&d_solid, phi * lambda * d_strain.trace());
+                let d3 = plastic.derivative(
+                    &trial3,
+                    &d_trial3,
+                    phi,
+                    mu,
+                    temperature.get(k).copied(),
+                    batch.dt,
+                    strains[k],
+                    damage.map(|d| d[k]),
+                );
+                d_solid = mixture_plasticity::project::<D>(&d3).0;
+            }
             let j = determinant(f);
             // d ln J = tr(F⁻¹ δF) = cof(F) : δF / J (the update clamps J at 1e-300).
             let d_ln_j = if j > 1e-300 {

@@ -135,6 +135,61 @@ impl SolidPlasticity {
         }
     }
 
+    /// The derivative of [`SolidPlasticity::apply`] at the trial stress `trial` along the
+    /// trial's change `d_trial`, from the step's starting plastic strain `strain` and
+    /// damage `damage`: the consistent tangent of the radial return (δx from
+    /// δq = (3φμ + φh)δx, h the flow stress's slope), or of a failed particle's shedding.
+    /// A particle that fails within the step gets the tangent of its return.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn derivative(
+        &self,
+        trial: &Matrix<3>,
+        d_trial: &Matrix<3>,
+        phi: f64,
+        mu: f64,
+        temperature: Option<f64>,
+        dt: f64,
+        strain: f64,
+        damage: Option<f64>,
+    ) -> Matrix<3> {
+        let identity = Matrix::<3>::identity();
+        let mean = trial.trace() / 3.0;
+        let d_mean = d_trial.trace() / 3.0;
+        if damage.is_some_and(|d| d >= 1.0) {
+            let mode = self.damage.map(|d| d.failure).unwrap_or_default();
+            let d_kept = match mode {
+                FailureMode::NoTension if mean < 0.0 => identity * d_mean,
+                _ => Matrix::<3>::zeros(),
+            };
+            let decay = self.failure_time.map_or(0.0, |t| (-dt / t).exp());
+            return d_kept + (d_trial - d_kept) * decay.max(RESIDUAL_STIFFNESS);
+        }
+        if phi <= 1e-9 {
+            return *d_trial;
+        }
+        let flow = &self.flow_stress;
+        let thermal = temperature.map_or(1.0, |t| flow.thermal_factor(t));
+        let deviator = trial - identity * mean;
+        let q = (1.5 * deviator.norm_squared()).sqrt();
+        if q <= phi * flow.evaluate(strain, 0.0, thermal).0 {
+            return *d_trial;
+        }
+        let stiffness = 3.0 * phi * mu;
+        let x = flow.radial_return(q, stiffness, phi, strain, thermal, dt);
+        let theta = 1.0 - stiffness * x / q;
+        if theta <= 0.0 {
+            return identity * d_mean;
+        }
+        let rate = if dt > 0.0 { x / dt } else { 0.0 };
+        let (_, slope_strain, slope_rate) = flow.evaluate(strain + x, rate, thermal);
+        let slope = slope_strain + if dt > 0.0 { slope_rate / dt } else { 0.0 };
+        let d_deviator = d_trial - identity * d_mean;
+        let d_q = 1.5 * deviator.dot(&d_deviator) / q;
+        let d_x = d_q / (stiffness + phi * slope);
+        let d_theta = -stiffness * (d_x / q - x * d_q / (q * q));
+        identity * d_mean + deviator * d_theta + d_deviator * theta
+    }
+
     /// The stress a failed particle keeps of its trial stress `s` over a step `dt`: the
     /// compressive mean stress (`no_tension`) or nothing (`no_stress`), plus of the rest
     /// e^(−dt/failure_time) (without `failure_time`, nothing), and never less than
@@ -362,5 +417,52 @@ mod tests {
         }
         .check("p");
         assert_eq!(issues[0].path, "p.failure_time");
+    }
+
+    /// The consistent tangent equals central differences of the return: below yield, on
+    /// the yield surface with hardening and heat, and for a failed particle shedding.
+    #[test]
+    fn the_tangent_matches_differences_of_the_return() {
+        let mut law = law(Some(Damage {
+            d1: 0.5,
+            d2: 0.0,
+            d3: 0.0,
+            d4: 0.0,
+            d5: 0.0,
+            failure: FailureMode::NoTension,
+        }));
+        law.flow_stress.hardening_modulus = 4e7;
+        law.flow_stress.hardening_exponent = 0.4;
+        law.failure_time = Some(3.0);
+        let (mu, phi, dt, t) = (3e9, 0.9, 1.0, Some(330.0));
+        let direction = Matrix::<3>::new(2e6, 1e6, -5e5, 1e6, -3e6, 7e5, -5e5, 7e5, 1.5e6);
+        let cases = [
+            (Matrix::<3>::new(20e6, 3e6, 0.0, 3e6, -5e6, 0.0, 0.0, 0.0, 4e6), 0.0, 0.0),
+            (Matrix::<3>::new(95e6, 20e6, 5e6, 20e6, -30e6, 0.0, 5e6, 0.0, 10e6), 0.01, 0.2),
+            (Matrix::<3>::new(40e6, 5e6, 0.0, 5e6, -80e6, 0.0, 0.0, 0.0, 10e6), 0.02, 1.0),
+        ];
+        for (trial, strain0, damage0) in cases {
+            let at = |s0: Matrix<3>| {
+                let (mut s, mut strain, mut d) = (s0, strain0, damage0);
+                law.apply(
+                    &mut s,
+                    phi,
+                    mu,
+                    t,
+                    dt,
+                    PlasticState {
+                        strain: &mut strain,
+                        damage: Some(&mut d),
+                    },
+                );
+                s
+            };
+            let h = 1e-3;
+            let numeric = (at(trial + direction * h) - at(trial - direction * h)) / (2.0 * h);
+            let analytic =
+                law.derivative(&trial, &direction, phi, mu, t, dt, strain0, Some(damage0));
+            let error = (analytic - numeric).norm() / numeric.norm();
+            assert!(error < 1e-6, "{trial:?}: {error:e}");
+        }
     }
 }
