@@ -13,6 +13,9 @@
 //! b = (τ/dt)(1 − a), exact for a constant volume rate over the step. For dt ≪ τ it is the
 //! elastic K_l ln J; for dt ≫ τ a bulk viscosity K_l τ, and the liquid keeps next to no
 //! pressure from one static step to the next.
+//!
+//! With `solid.plasticity` the solid stress is returned onto a Johnson–Cook yield surface
+//! after each increment and damages to failure (`mixture_plasticity.rs`).
 
 use crate::mixture_plasticity::{self, PlasticState, SolidPlasticity};
 use mpm_core::material::{
