@@ -737,6 +737,17 @@ fn print_summary(v: &ValidatedScene, m: &Metrics, store: &Path) -> anyhow::Resul
             stage.wall_seconds
         )?;
     }
+    for line in crate::process_report::process_report(m) {
+        outln!("report         {line}")?;
+    }
+    if m.stages.is_empty() {
+        for (material, d) in &m.damage {
+            outln!(
+                "damage         {}",
+                crate::process_report::damage_line(material, d)
+            )?;
+        }
+    }
     outln!(
         "steps          {} to t = {:.6e} s",
         m.steps,

@@ -8,6 +8,7 @@ mod exit_status;
 mod job;
 mod overrides;
 mod plot;
+mod process_report;
 mod progress;
 mod render;
 mod resume;

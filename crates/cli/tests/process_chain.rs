@@ -1,9 +1,11 @@
 //! The staged process example `examples/underfill-cure-cycles.json`: cure, cool-down and
-//! thermal cycles of the underfill-cure section in one run and one store.
+//! thermal cycles of the underfill-cure section in one run and one store; with the
+//! underfill yielding and damaging, its damage averaged over a material length.
 
 mod common;
 
-use common::{example, mpm, text};
+use common::{example, invalid_example, load_example, mpm, run_to_store, text};
+use mpm_core::output::Outcome;
 use mpm_io::ResultStore;
 
 /// In-plane von Mises stress of every particle of a frame of 2×2 stresses.
@@ -214,5 +216,101 @@ fn bad_solid_plasticity_is_refused_at_its_path() {
         );
         assert!(!out.status.success(), "{set}");
         assert!(text(&out).contains(path), "{set}: {}", text(&out));
+    }
+}
+
+/// Radius of the damage average in the tests of `solid.plasticity.damage_averaging_radius`
+/// (`solver/state_averaging.rs`), on this example with a yielding, damaging underfill.
+const RADIUS: f64 = 5e-5;
+
+/// The underfill of the example with the process example's flow stress and damage, the
+/// damage averaged over `RADIUS`.
+fn plastic_underfill() -> String {
+    format!(
+        r#"materials.underfill.solid.plasticity={{"flow_stress":{{"yield_stress":7e7,
+        "hardening_modulus":5e7,"hardening_exponent":0.3,"strain_rate_sensitivity":0,
+        "thermal_softening_exponent":1,"room_temperature":298,"melt_temperature":473}},
+        "damage":{{"d1":0.001,"d2":0.002,"d3":-2}},"failure_time":600,
+        "damage_averaging_radius":{RADIUS}}}"#
+    )
+}
+
+#[test]
+fn the_damage_is_the_average_of_the_stored_local_damage() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("r.zarr");
+    let fields = r#"stages[2].changes.output.fields=["x","volume","material","damage","local_damage","plastic_strain"]"#;
+    let scene = load_example(
+        "underfill-cure-cycles.json",
+        &[&plastic_underfill(), fields],
+    );
+    let m = run_to_store(&scene, &store);
+    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+    let s = ResultStore::open_stage(&store, Some("cycles")).unwrap();
+    let last = s.frame_count().unwrap() - 1;
+    let field = |name: &str| s.frame(name, last).unwrap().1;
+    let (x, volume, material) = (field("x"), field("volume"), field("material"));
+    // The damage fields hold values for every particle (0 where a law keeps none).
+    let (damage, local) = (field("damage"), field("local_damage"));
+    // Materials in scene order: silicon, substrate, underfill.
+    let mine: Vec<usize> = (0..volume.len()).filter(|&p| material[p] == 2.0).collect();
+    let (mut largest, mut worst) = (0.0f64, 0.0f64);
+    for &p in &mine {
+        let (mut weighted, mut total) = (0.0, 0.0);
+        for &q in &mine {
+            let d = ((x[2 * p] - x[2 * q]).powi(2) + (x[2 * p + 1] - x[2 * q + 1]).powi(2)).sqrt();
+            if d <= RADIUS {
+                weighted += volume[q] * local[q];
+                total += volume[q];
+            }
+        }
+        let average = (weighted / total).min(1.0);
+        // The averaged damage never falls: it is at least this step's average, and above
+        // it only by what the average lost since it was larger (the particles moved).
+        assert!(
+            damage[p] >= average - 1e-12,
+            "particle {p}: {} < {average}",
+            damage[p]
+        );
+        worst = worst.max(damage[p] - average);
+        largest = largest.max(average);
+    }
+    let peak = m.stages[2].damage["underfill"].peak;
+    let local_peak = mine.iter().map(|&p| local[p]).fold(0.0, f64::max);
+    println!(
+        "underfill after the cycles: averaged damage {peak:.4} (from the store {largest:.4}, \
+         largest excess {worst:.2e}), local damage {local_peak:.4}"
+    );
+    assert!(largest > 0.05, "too little damage to check: {largest}");
+    // The local damage only grows, so the average falls only as particles move across
+    // the radius or change volume (the cycles' thermal strain): by less than one
+    // particle's share of the disk at the largest local damage.
+    let particle = mine.iter().map(|&p| volume[p]).sum::<f64>() / mine.len() as f64;
+    let share = local_peak * particle / (std::f64::consts::PI * RADIUS * RADIUS);
+    assert!(
+        worst <= share,
+        "the average fell by {worst}, one particle's share {share}"
+    );
+    assert!(
+        peak >= largest && peak - largest <= share,
+        "{peak} against {largest}"
+    );
+    assert!(
+        local_peak > 2.0 * peak,
+        "the local damage concentrates: {local_peak}"
+    );
+}
+
+#[test]
+fn a_bad_averaging_radius_is_refused_at_its_path() {
+    let path = "materials.underfill.solid.plasticity.damage_averaging_radius";
+    let with =
+        |value: &str| plastic_underfill().replace(&format!(":{RADIUS}}}"), &format!(":{value}}}"));
+    for value in ["0", "-1e-5"] {
+        let issues = invalid_example("underfill-cure-cycles.json", &[&with(value)]);
+        assert!(
+            issues.iter().any(|i| i.starts_with(path)),
+            "{value}: {issues:?}"
+        );
     }
 }

@@ -165,7 +165,6 @@ fn the_chain_cracks_from_its_void_in_the_first_cycle_and_the_crack_grows() {
         per_cycle[0] > 0 && per_cycle[1] > per_cycle[0] && per_cycle[2] > per_cycle[1],
         "failed particles per cycle {per_cycle:?}"
     );
-    // The first particles to fail sit within two cells (20 µm) of the void the fill trapped.
     let root = dir.path().join("chain/underfill-process-2d.zarr");
     let store = ResultStore::open(&root).unwrap().stage("cycle-1").unwrap();
     let (columns, rows) = ResultStore::open(&root)
@@ -177,21 +176,54 @@ fn the_chain_cracks_from_its_void_in_the_first_cycle_and_the_crack_grows() {
         .unwrap();
     let col = |name: &str| columns.iter().position(|c| c == name).unwrap();
     let void = [rows[0][col("x")], rows[0][col("y")]];
-    let first = (0..store.frame_count().unwrap())
+    let (first_frame, first) = (0..store.frame_count().unwrap())
         .find_map(|frame| {
             let damage = store.frame("damage", frame).unwrap().1;
             let x = store.frame("x", frame).unwrap().1;
-            let failed: Vec<[f64; 2]> = (0..damage.len())
+            let failed: Vec<(usize, [f64; 2])> = (0..damage.len())
                 .filter(|&p| damage[p] >= 1.0)
-                .map(|p| [x[2 * p], x[2 * p + 1]])
+                .map(|p| (p, [x[2 * p], x[2 * p + 1]]))
                 .collect();
-            (!failed.is_empty()).then_some(failed)
+            (!failed.is_empty()).then_some((frame as usize, failed))
         })
         .expect("no particle failed in the first cycle");
-    for p in &first {
-        let distance = ((p[0] - void[0]).powi(2) + (p[1] - void[1]).powi(2)).sqrt();
-        assert!(distance < 20e-6, "first failure at {p:?}, void at {void:?}");
+    // The summary's onset is the step the first of them failed in: between the frame
+    // before and the frame that shows it, one of them, within two cells (20 µm) of the
+    // void the fill trapped (others, at the die's edge, fail later in the same frame).
+    let figures = |name: &str| {
+        stages.iter().find(|s| s["name"] == name).unwrap()["damage"]["underfill"].clone()
+    };
+    for quiet in ["cure", "cool"] {
+        assert!(figures(quiet)["onset"].is_null(), "{quiet} has an onset");
     }
+    let onset = &figures("cycle-1")["onset"];
+    let times = store.times().unwrap();
+    let time = onset["time"].as_f64().unwrap();
+    assert!(
+        time > times[first_frame - 1] && time <= times[first_frame] * (1.0 + 1e-12),
+        "onset at {time} s, first seen at {} s",
+        times[first_frame]
+    );
+    let particle = onset["particle"].as_u64().unwrap() as usize;
+    assert!(
+        first.iter().any(|(p, _)| *p == particle),
+        "onset particle {particle}"
+    );
+    let at = [
+        onset["position"][0].as_f64().unwrap(),
+        onset["position"][1].as_f64().unwrap(),
+    ];
+    let distance = ((at[0] - void[0]).powi(2) + (at[1] - void[1]).powi(2)).sqrt();
+    assert!(distance < 20e-6, "onset at {at:?}, void at {void:?}");
+    // The cracks grow from cycle to cycle.
+    let length = |name: &str| figures(name)["crack_length"].as_f64().unwrap();
+    assert!(figures("cycle-1")["cracks"].as_u64().unwrap() >= 1);
+    assert!(
+        length("cycle-1") > 0.0 && length("cycle-3") >= length("cycle-1"),
+        "crack lengths {} → {} m",
+        length("cycle-1"),
+        length("cycle-3")
+    );
     // The summary counts what the store holds at the stage's end.
     let last = store
         .frame("damage", store.frame_count().unwrap() - 1)

@@ -31,6 +31,23 @@ pub struct FieldSpec {
     pub initial: FieldInit,
 }
 
+/// A state field the core averages over a material length after every step: each
+/// particle's `averaged` field becomes the volume-weighted mean of the `local` field over
+/// the particles of its material within `radius` (never lower than it was, at most
+/// `cap`). A damage law drives its damage this way so a crack's onset does not depend on
+/// the cell (a nonlocal integral model); see `solver/state_averaging.rs`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AveragedState {
+    /// Index (in [`ConstitutiveLaw::state_fields`]) of the one-component field averaged.
+    pub local: usize,
+    /// Index of the one-component field the average goes to.
+    pub averaged: usize,
+    /// Radius of the average, m (a material length).
+    pub radius: f64,
+    /// Largest value the averaged field takes.
+    pub cap: f64,
+}
+
 /// Initial value of a state field.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FieldInit {
@@ -144,6 +161,11 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn state_fields(&self) -> &[FieldSpec] {
         &[]
     }
+    /// A state field the core averages over a material length after every step (see
+    /// [`AveragedState`]); none by default.
+    fn averaged_state(&self) -> Option<AveragedState> {
+        None
+    }
     /// Whether the law needs the velocity gradient (rate-dependent laws do).
     fn needs_velocity_gradient(&self) -> bool {
         false
@@ -216,6 +238,8 @@ pub trait Material: Send + Sync {
     fn density(&self) -> f64;
     /// See [`ConstitutiveLaw::state_fields`].
     fn state_fields(&self) -> &[FieldSpec];
+    /// See [`ConstitutiveLaw::averaged_state`].
+    fn averaged_state(&self) -> Option<AveragedState>;
     /// See [`ConstitutiveLaw::needs_velocity_gradient`].
     fn needs_velocity_gradient(&self) -> bool;
     /// See [`ConstitutiveLaw::shared_reads`].
@@ -252,6 +276,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn state_fields(&self) -> &[FieldSpec] {
         ConstitutiveLaw::state_fields(self)
+    }
+    fn averaged_state(&self) -> Option<AveragedState> {
+        ConstitutiveLaw::averaged_state(self)
     }
     fn needs_velocity_gradient(&self) -> bool {
         ConstitutiveLaw::needs_velocity_gradient(self)

@@ -100,7 +100,8 @@ pub struct StageSummary {
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub averaged_von_mises: std::collections::BTreeMap<String, f64>,
     /// Damage at the stage's end of each material whose law keeps damage
-    /// (`damage_measures.rs`): the largest, and the failed particles and their volume.
+    /// (`damage_measures.rs`): the largest, the failed particles and their volume, the
+    /// cracks and the longest one's length, and the stage's first failure.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub damage: std::collections::BTreeMap<String, crate::damage_measures::DamageFigures>,
 }
@@ -299,4 +300,9 @@ pub struct Metrics {
     /// result store also holds each as the array `tables/<name>`.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub tables: std::collections::BTreeMap<String, Table>,
+    /// Damage at the end of each material whose law keeps damage (`damage_measures.rs`):
+    /// the largest, the failed particles, their cracks, and the first failure's time and
+    /// place (a particle failed when the run or stage began does not count).
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub damage: std::collections::BTreeMap<String, crate::damage_measures::DamageFigures>,
 }

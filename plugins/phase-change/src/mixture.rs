@@ -19,8 +19,8 @@
 
 use crate::mixture_plasticity::{self, PlasticState, SolidPlasticity};
 use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, TangentBatch,
-    lame_parameters,
+    AveragedState, BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch,
+    TangentBatch, lame_parameters,
 };
 use mpm_core::math::{Matrix, cofactor, determinant, inverse};
 use mpm_core::plugin::check_elastic_constants;
@@ -152,7 +152,7 @@ pub struct PhaseMixture {
     lambda: f64,
     mu: f64,
     /// `previous_F`, `solid_stress`, then `liquid_pressure` with relaxation, then
-    /// `plastic_strain` and `damage` as the solid's plasticity asks.
+    /// `plastic_strain`, `damage` and `local_damage` as the solid's plasticity asks.
     fields: Vec<FieldSpec>,
     /// Where the optional fields sit in `fields`.
     slots: Slots,
@@ -166,6 +166,7 @@ struct Slots {
     pressure: Option<usize>,
     plastic_strain: Option<usize>,
     damage: Option<usize>,
+    local_damage: Option<usize>,
 }
 
 impl PhaseMixture {
@@ -195,6 +196,10 @@ impl PhaseMixture {
             ),
             plastic_strain: add(plastic.is_some(), "plastic_strain"),
             damage: add(plastic.is_some_and(|p| p.damage.is_some()), "damage"),
+            local_damage: add(
+                plastic.is_some_and(|p| p.damage.is_some() && p.damage_averaging_radius.is_some()),
+                "local_damage",
+            ),
         };
         let mut reads = vec![SharedRead {
             name: "solid_fraction",
@@ -236,12 +241,25 @@ impl ConstitutiveLaw for PhaseMixture {
         &self.reads
     }
 
+    /// With `solid.plasticity.damage_averaging_radius`: `damage` is `local_damage`
+    /// averaged over the radius.
+    fn averaged_state(&self) -> Option<AveragedState> {
+        let radius = self.params.solid.plasticity?.damage_averaging_radius?;
+        Some(AveragedState {
+            local: self.slots.local_damage?,
+            averaged: self.slots.damage?,
+            radius,
+            cap: 1.0,
+        })
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let mut fields = batch.state.fields;
         let mut take = |slot: Option<usize>| slot.map(|i| std::mem::take(&mut fields[i]));
         let pressure = take(self.slots.pressure).unwrap_or_default();
         let plastic_strain = take(self.slots.plastic_strain).unwrap_or_default();
         let damage = take(self.slots.damage).unwrap_or_default();
+        let local_damage = take(self.slots.local_damage).unwrap_or_default();
         let [previous, solid, ..] = fields;
         let fraction = batch.shared[0];
         let temperature = batch.shared[1];
@@ -283,6 +301,7 @@ impl ConstitutiveLaw for PhaseMixture {
                     PlasticState {
                         strain: &mut plastic_strain[k],
                         damage: damage.get_mut(k),
+                        local_damage: local_damage.get_mut(k),
                     },
                 );
                 let (in_plane, zz) = mixture_plasticity::project::<D>(&s3);
@@ -365,14 +384,15 @@ impl ConstitutiveLaw for PhaseMixture {
             let f_prev: Matrix<D> = load(&previous[9 * k..9 * k + 9]);
             let s0: Matrix<D> = load(&solid[9 * k..9 * k + 9]);
             // Without an inverse the update takes the increment as I: no change.
-            let d_increment = inverse(&f_prev).map_or(Matrix::<D>::zeros(), |inv| df * inv);
+            let f_prev_inverse = inverse(&f_prev);
+            let d_increment = f_prev_inverse.map_or(Matrix::<D>::zeros(), |inv| df * inv);
             let d_strain = (d_increment + d_increment.transpose()) * 0.5;
             let d_spin = (d_increment - d_increment.transpose()) * 0.5;
             let mut d_solid = d_spin * s0 - s0 * d_spin
                 + (identity * (lambda * d_strain.trace()) + d_strain * (2.0 * mu)) * phi;
             if let (Some(plastic), Some(strains)) = (&plasticity, plastic_strain) {
                 // The update's trial stress at F, as `update_stress` builds it.
-                let increment = inverse(&f_prev).map_or(identity, |inv| f * inv);
+                let increment = f_prev_inverse.map_or(identity, |inv| f * inv);
                 let strain = (increment + increment.transpose()) * 0.5 - identity;
                 let spin = (increment - increment.transpose()) * 0.5;
                 let trial = s0 + spin * s0 - s0 * spin

@@ -43,6 +43,12 @@ pub struct SolidPlasticity {
     /// that drops at once, as a crack that opens does); absent: at once.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure_time: Option<f64>,
+    /// Radius, m, over which the damage is averaged (a material length): each particle's
+    /// plastic strain drives its `local_damage`, and its `damage`, which fails it at 1, is
+    /// the mean of that over the solid within the radius, so where and when a crack starts
+    /// does not depend on the cell. Absent: each particle's own (local) damage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damage_averaging_radius: Option<f64>,
 }
 
 impl SolidPlasticity {
@@ -65,6 +71,19 @@ impl SolidPlasticity {
                 ));
             }
         }
+        if let Some(r) = self.damage_averaging_radius {
+            if !(r.is_finite() && r > 0.0) {
+                issues.push(Issue::new(
+                    format!("{path}.damage_averaging_radius"),
+                    format!("must be a finite number > 0 metres (got {r})"),
+                ));
+            } else if self.damage.is_none() {
+                issues.push(Issue::new(
+                    format!("{path}.damage_averaging_radius"),
+                    "needs `damage`: without it there is no damage to average".to_string(),
+                ));
+            }
+        }
         issues
     }
 }
@@ -73,8 +92,12 @@ impl SolidPlasticity {
 pub(crate) struct PlasticState<'a> {
     /// Accumulated equivalent plastic strain.
     pub strain: &'a mut f64,
-    /// Damage in [0, 1]; `None` without a damage model.
+    /// Damage in [0, 1]; `None` without a damage model. With an averaging radius it is
+    /// the averaged damage, which the law reads and the core writes.
     pub damage: Option<&'a mut f64>,
+    /// The damage the particle's own plastic strain drives, unbounded, with an averaging
+    /// radius (`None` without).
+    pub local_damage: Option<&'a mut f64>,
 }
 
 impl SolidPlasticity {
@@ -90,7 +113,11 @@ impl SolidPlasticity {
         dt: f64,
         state: PlasticState<'_>,
     ) {
-        let PlasticState { strain, damage } = state;
+        let PlasticState {
+            strain,
+            damage,
+            local_damage,
+        } = state;
         let failed = damage.as_deref().is_some_and(|d| *d >= 1.0);
         let mean = s.trace() / 3.0;
         let deviator = *s - Matrix::<3>::identity() * mean;
@@ -129,6 +156,11 @@ impl SolidPlasticity {
         };
         let homologous = temperature.map_or(0.0, |t| flow.homologous_temperature(t));
         let failure_strain = model.failure_strain(triaxiality, rate_ratio, homologous);
+        if let Some(local) = local_damage {
+            // The core averages it into `damage` after the step.
+            *local += increment / failure_strain;
+            return;
+        }
         *d = (*d + increment / failure_strain).min(1.0);
         if *d >= 1.0 {
             *s = self.failed_stress(s, dt);
@@ -248,6 +280,7 @@ mod tests {
             },
             damage,
             failure_time: None,
+            damage_averaging_radius: None,
         }
     }
 
@@ -255,6 +288,7 @@ mod tests {
         PlasticState {
             strain,
             damage: None,
+            local_damage: None,
         }
     }
 
@@ -281,6 +315,7 @@ mod tests {
             PlasticState {
                 strain: &mut strain,
                 damage: None,
+                local_damage: None,
             },
         );
         assert!((von_mises(&s) - phi * 50e6).abs() < 1e-6 * 50e6);
@@ -344,6 +379,7 @@ mod tests {
             PlasticState {
                 strain: &mut strain,
                 damage: Some(&mut d),
+                local_damage: None,
             },
         );
         assert!((d - strain / 0.01).abs() < 1e-12);
@@ -359,6 +395,7 @@ mod tests {
             PlasticState {
                 strain: &mut strain,
                 damage: Some(&mut d),
+                local_damage: None,
             },
         );
         assert_eq!(d, 1.0);
@@ -376,6 +413,7 @@ mod tests {
             PlasticState {
                 strain: &mut strain,
                 damage: Some(&mut d),
+                local_damage: None,
             },
         );
         let kept = Matrix::<3>::identity() * (-40e6);
@@ -407,6 +445,7 @@ mod tests {
             PlasticState {
                 strain: &mut strain,
                 damage: Some(&mut d),
+                local_damage: None,
             },
         );
         // Mean 8 MPa is tension: nothing is kept, the whole trial decays by e^(−1/2).
@@ -417,6 +456,57 @@ mod tests {
         }
         .check("p");
         assert_eq!(issues[0].path, "p.failure_time");
+    }
+
+    /// With an averaging radius the return drives the local damage past 1 and leaves the
+    /// (averaged) damage and the stress's failure to the core's average.
+    #[test]
+    fn averaged_damage_leaves_failure_to_the_average() {
+        let model = Damage {
+            d1: 0.001,
+            d2: 0.0,
+            d3: 0.0,
+            d4: 0.0,
+            d5: 0.0,
+            failure: FailureMode::NoTension,
+        };
+        let law = SolidPlasticity {
+            damage_averaging_radius: Some(2e-5),
+            ..law(Some(model))
+        };
+        let trial = Matrix::<3>::from_diagonal(&mpm_core::math::Vector::<3>::new(80e6, 0.0, 0.0));
+        let (mut strain, mut d, mut local) = (0.0, 0.5, 0.0);
+        let mut s = trial;
+        law.apply(
+            &mut s,
+            1.0,
+            1e9,
+            None,
+            1.0,
+            PlasticState {
+                strain: &mut strain,
+                damage: Some(&mut d),
+                local_damage: Some(&mut local),
+            },
+        );
+        assert!(strain > 0.0);
+        assert!(
+            (local - strain / 0.001).abs() < 1e-9 * local,
+            "{local} {strain}"
+        );
+        assert!(local > 1.0, "the local damage is not capped: {local}");
+        assert_eq!(d, 0.5, "the law does not write the averaged damage");
+        assert!((von_mises(&s) - 50e6).abs() < 1.0, "returned, not failed");
+        let bad = SolidPlasticity {
+            damage_averaging_radius: Some(0.0),
+            ..law
+        };
+        assert_eq!(bad.check("p")[0].path, "p.damage_averaging_radius");
+        let without = SolidPlasticity {
+            damage: None,
+            ..law
+        };
+        assert_eq!(without.check("p")[0].path, "p.damage_averaging_radius");
     }
 
     /// The consistent tangent equals central differences of the return: below yield, on
@@ -465,6 +555,7 @@ mod tests {
                     PlasticState {
                         strain: &mut strain,
                         damage: Some(&mut d),
+                        local_damage: None,
                     },
                 );
                 s

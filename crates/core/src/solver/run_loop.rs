@@ -2,13 +2,16 @@
 //! output times), output frames, the reference, the energy balance and the stop checks.
 
 use super::conservation::{Totals, Tracker, totals};
+use super::failure_watch::FailureWatch;
 use super::multi_field::MultiField;
 use super::output_staging::fill_staging;
 use super::simulation::Simulation;
+use super::state_averaging::StateAveraging;
 use super::stats::ParticleFault;
 use super::volume_averaging::VolumeAverage;
 use super::{Control, DimensionDispatch, Progress, RunError, RunObserver};
 use crate::checkpoint::{CHECKPOINT_FORMAT, Checkpoint, CheckpointError, Scalars};
+use crate::damage_measures::damage_figures;
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{
@@ -281,6 +284,11 @@ where
                 None
             }
         };
+        let mut averaging = StateAveraging::for_particles(&self.particles);
+        let mut failures = match from {
+            Start::Resume(c) => FailureWatch::load(&self.particles, c),
+            _ => FailureWatch::start(&self.particles),
+        };
         let n = self.particles.len();
         sink.begin(&RunInfo {
             name: &self.name,
@@ -364,6 +372,10 @@ where
                 dt = next_frame_time - self.time;
             }
             self.step(dt);
+            if let Some(averaging) = averaging.as_mut() {
+                averaging.apply(&mut self.particles);
+            }
+            failures.observe(&self.particles, self.time);
             let k = &self.kinematics;
             let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
             run.mechanical_max = run.mechanical_max.max(mechanical);
@@ -399,6 +411,7 @@ where
                 let wall = run.wall_before + start.elapsed().as_secs_f64();
                 run.save(&mut c, wall);
                 self.save_state(&mut c);
+                failures.save(&mut c);
                 if !self.stage_tag.is_null() {
                     c.set_state("stage", self.stage_tag.clone());
                 }
@@ -428,6 +441,12 @@ where
             ..
         } = run;
         let wall = wall_before + start.elapsed().as_secs_f64();
+        let mut damage = damage_figures(&self.particles);
+        for (name, onset) in failures.onsets() {
+            if let Some(figures) = damage.get_mut(name) {
+                figures.onset = Some(*onset);
+            }
+        }
         let metrics = Metrics {
             outcome: Some(outcome),
             wall_seconds: wall,
@@ -474,6 +493,7 @@ where
             diagnostic,
             physics: self.report.maxima.iter().cloned().collect(),
             tables: self.report.tables.iter().cloned().collect(),
+            damage,
         };
         sink.finish(&metrics)?;
         Ok(metrics)

@@ -8,7 +8,7 @@ use super::hand_over;
 use super::simulation::Simulation;
 use super::{DimensionDispatch, RunError, RunObserver, SimulationVisitor, dispatch};
 use crate::checkpoint::Checkpoint;
-use crate::damage_measures::{DamageFigures, damage_figures};
+use crate::damage_measures::DamageFigures;
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{Metrics, Outcome, OutputSink, StageInfo, StageSummary};
@@ -49,7 +49,7 @@ pub(super) fn run_stages(
                     .averaging_radius
                     .map(|r| averaged_peak_von_mises(&sim.particles, r))
                     .unwrap_or_default(),
-                damage: damage_figures(&sim.particles),
+                damage: metrics.damage.clone(),
             };
             Ok((metrics, end, figures))
         }

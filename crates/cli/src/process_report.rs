@@ -1,0 +1,172 @@
+//! The process report `mpm run` prints after a staged run's summary: per stage, what the
+//! fill left (fill time, voids), the peak von Mises stress of each material, and damage
+//! (failed particles, cracks, the longest crack, the first failure); then where the first
+//! crack started. Every figure is also in the run's metrics (`stages[i]`), which the job
+//! service stores with the job.
+
+use mpm_core::damage_measures::DamageFigures;
+use mpm_core::output::{Metrics, StageSummary};
+
+/// The report's lines (empty for a run without stages).
+pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
+    let mut lines = Vec::new();
+    for stage in &m.stages {
+        let name = &stage.name;
+        if let Some(fill) = fill_line(stage) {
+            lines.push(format!("{name}: {fill}"));
+        }
+        // A stage without mechanics (a fill) has no stress to report.
+        if stage.peak_von_mises.values().any(|s| *s > 0.0) {
+            let peaks: Vec<String> = stage
+                .peak_von_mises
+                .iter()
+                .map(|(material, s)| format!("{material} {:.1}", s / 1e6))
+                .collect();
+            lines.push(format!("{name}: peak von Mises, MPa: {}", peaks.join(", ")));
+        }
+        for (material, d) in stage.damage.iter().filter(|(_, d)| d.peak > 0.0) {
+            lines.push(format!("{name}: {}", damage_line(material, d)));
+        }
+    }
+    let first = m.stages.iter().find_map(|stage| {
+        stage
+            .damage
+            .iter()
+            .filter_map(|(material, d)| d.onset.map(|o| (material, o)))
+            .min_by(|a, b| a.1.time.total_cmp(&b.1.time))
+            .map(|(material, o)| (stage, material, o))
+    });
+    if !m.stages.is_empty() && m.stages.iter().any(|s| !s.damage.is_empty()) {
+        lines.push(match first {
+            Some((stage, material, o)) => format!(
+                "crack onset: stage {} ({} of {}), {material}, t = {:.6e} s at {}",
+                stage.name,
+                1 + m
+                    .stages
+                    .iter()
+                    .position(|s| s.name == stage.name)
+                    .unwrap_or(0),
+                m.stages.len(),
+                o.time,
+                position(&o.position)
+            ),
+            None => "crack onset: none (no particle failed)".to_string(),
+        });
+    }
+    lines
+}
+
+/// One material's damage: the largest, the failed particles, their cracks and the first
+/// failure (`underfill damage 1.000, 37 failed in 2 crack(s), longest ...`).
+pub(crate) fn damage_line(material: &str, d: &DamageFigures) -> String {
+    let mut line = format!(
+        "{material} damage {:.3}, {} failed",
+        d.peak, d.failed_particles
+    );
+    if d.failed_particles > 0 {
+        line += &format!(
+            " in {} crack(s), longest {:.4e} m",
+            d.cracks, d.crack_length
+        );
+    }
+    if let Some(o) = &d.onset {
+        line += &format!(
+            "; first failure t = {:.6e} s at {}",
+            o.time,
+            position(&o.position)
+        );
+    }
+    line
+}
+
+/// What a fill stage reports: fill time, voids and trapped air, when it has them.
+fn fill_line(stage: &StageSummary) -> Option<String> {
+    let p = &stage.physics;
+    let mut parts = Vec::new();
+    if let Some(t) = p.get("underfill.fill_time") {
+        parts.push(format!("fill time {t:.6e} s"));
+    }
+    if let Some(f) = p.get("underfill.fill_fraction") {
+        parts.push(format!("filled {:.2}%", 100.0 * f));
+    }
+    if let Some(v) = p.get("underfill.voids") {
+        parts.push(format!("{v} void(s)"));
+    }
+    if let Some(a) = p.get("underfill.trapped_air_area") {
+        parts.push(format!("trapped air {a:.4e} m²"));
+    }
+    if let Some(v) = p.get("underfill.trapped_air_volume") {
+        parts.push(format!("trapped air {v:.4e} m³"));
+    }
+    if stage.removed_particles > 0 {
+        parts.push(format!(
+            "{} particles removed at its start",
+            stage.removed_particles
+        ));
+    }
+    (!parts.is_empty()).then(|| parts.join(", "))
+}
+
+/// A position in m, with z left out when it is 0 (2D).
+fn position(x: &[f64; 3]) -> String {
+    if x[2] == 0.0 {
+        format!("({:.4e}, {:.4e}) m", x[0], x[1])
+    } else {
+        format!("({:.4e}, {:.4e}, {:.4e}) m", x[0], x[1], x[2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mpm_core::damage_measures::FailureOnset;
+
+    fn stage(name: &str, onset: Option<f64>) -> StageSummary {
+        let mut s = StageSummary {
+            name: name.into(),
+            ..StageSummary::default()
+        };
+        s.peak_von_mises.insert("silicon".into(), 2.5e8);
+        s.damage.insert(
+            "underfill".into(),
+            DamageFigures {
+                peak: if onset.is_some() { 1.0 } else { 0.5 },
+                failed_particles: usize::from(onset.is_some()) * 4,
+                cracks: usize::from(onset.is_some()),
+                crack_length: 4e-5,
+                onset: onset.map(|time| FailureOnset {
+                    time,
+                    position: [1e-4, 2e-4, 0.0],
+                    particle: 7,
+                }),
+                ..DamageFigures::default()
+            },
+        );
+        s
+    }
+
+    #[test]
+    fn the_report_names_the_stage_a_crack_started_in() {
+        let m = Metrics {
+            stages: vec![stage("cure", None), stage("cycle-1", Some(3900.0))],
+            ..Metrics::default()
+        };
+        let lines = process_report(&m);
+        assert!(lines.contains(&"cure: peak von Mises, MPa: silicon 250.0".to_string()));
+        assert!(lines.contains(&"cure: underfill damage 0.500, 0 failed".to_string()));
+        assert_eq!(
+            lines.last().unwrap(),
+            "crack onset: stage cycle-1 (2 of 2), underfill, t = 3.900000e3 s at \
+             (1.0000e-4, 2.0000e-4) m"
+        );
+        let whole = Metrics {
+            stages: vec![stage("cure", None)],
+            ..Metrics::default()
+        };
+        assert_eq!(
+            process_report(&whole).last().unwrap(),
+            "crack onset: none (no particle failed)"
+        );
+        assert!(process_report(&Metrics::default()).is_empty());
+    }
+}
