@@ -219,7 +219,7 @@ fn bad_solid_plasticity_is_refused_at_its_path() {
     }
 }
 
-/// Radius of the damage average in the tests of `solid.plasticity.damage_averaging_radius`
+/// Radius of the damage average in the tests of `solid.plasticity.damage.averaging_radius`
 /// (`solver/state_averaging.rs`), on this example with a yielding, damaging underfill.
 const RADIUS: f64 = 5e-5;
 
@@ -230,8 +230,8 @@ fn plastic_underfill() -> String {
         r#"materials.underfill.solid.plasticity={{"flow_stress":{{"yield_stress":7e7,
         "hardening_modulus":5e7,"hardening_exponent":0.3,"strain_rate_sensitivity":0,
         "thermal_softening_exponent":1,"room_temperature":298,"melt_temperature":473}},
-        "damage":{{"d1":0.001,"d2":0.002,"d3":-2}},"failure_time":600,
-        "damage_averaging_radius":{RADIUS}}}"#
+        "damage":{{"d1":0.001,"d2":0.002,"d3":-2,"averaging_radius":{RADIUS}}},
+        "failure_time":600}}"#
     )
 }
 
@@ -303,7 +303,7 @@ fn the_damage_is_the_average_of_the_stored_local_damage() {
 
 #[test]
 fn a_bad_averaging_radius_is_refused_at_its_path() {
-    let path = "materials.underfill.solid.plasticity.damage_averaging_radius";
+    let path = "materials.underfill.solid.plasticity.damage.averaging_radius";
     let with =
         |value: &str| plastic_underfill().replace(&format!(":{RADIUS}}}"), &format!(":{value}}}"));
     for value in ["0", "-1e-5"] {

@@ -226,7 +226,7 @@ fn a_crack_onset_before_the_checkpoint_is_kept_by_the_resumed_run() {
     // particle fails at 5,700 s (step 145, in `cycles`), before the checkpoint at step 200,
     // so the resumed run reports the onset its checkpoint carried (`failure_watch.rs`)
     // and the averaged damage goes on as it would have.
-    let plasticity = r#"materials.underfill.solid.plasticity={"flow_stress":{"yield_stress":7e7,"hardening_modulus":5e7,"hardening_exponent":0.3,"strain_rate_sensitivity":0,"thermal_softening_exponent":1,"room_temperature":298,"melt_temperature":473},"damage":{"d1":5e-5,"d2":1e-4,"d3":-2},"failure_time":600,"damage_averaging_radius":5e-5}"#;
+    let plasticity = r#"materials.underfill.solid.plasticity={"flow_stress":{"yield_stress":7e7,"hardening_modulus":5e7,"hardening_exponent":0.3,"strain_rate_sensitivity":0,"thermal_softening_exponent":1,"room_temperature":298,"melt_temperature":473},"damage":{"d1":5e-5,"d2":1e-4,"d3":-2,"averaging_radius":5e-5},"failure_time":600}"#;
     let (_dir, store) =
         resumed_equals_uninterrupted("underfill-cure-cycles.json", &[plasticity], 200);
     let metrics = ResultStore::open(&store).unwrap().attributes()["metrics"].clone();

@@ -36,6 +36,13 @@ pub struct Damage {
     /// Behaviour after failure.
     #[serde(default)]
     pub failure: FailureMode,
+    /// Radius, m, over which the damage is averaged (a material length): each particle's
+    /// plastic strain drives its `local_damage`, and its `damage`, which fails it at 1, is
+    /// the mean of that over its material within the radius (the core's
+    /// `solver/state_averaging.rs`), so where and when a crack starts does not depend on
+    /// the cell. Absent: each particle's own damage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub averaging_radius: Option<f64>,
 }
 
 /// Smallest failure strain used, so that a damage increment stays finite.
@@ -58,6 +65,15 @@ impl Damage {
                     format!("must be finite (got {value})"),
                 ));
             }
+        }
+        if let Some(r) = self
+            .averaging_radius
+            .filter(|r| !(r.is_finite() && *r > 0.0))
+        {
+            issues.push(Issue::new(
+                format!("{path}.averaging_radius"),
+                format!("must be a finite number > 0 metres (got {r})"),
+            ));
         }
         if self.d1 + self.d2 <= 0.0 {
             issues.push(Issue::new(

@@ -13,8 +13,8 @@
 use crate::JohnsonCookParameters;
 use crate::damage::FailureMode;
 use mpm_core::material::{
-    BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch, TangentBatch,
-    lame_parameters,
+    AveragedState, BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch,
+    TangentBatch, lame_parameters,
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;
@@ -29,8 +29,13 @@ pub struct JohnsonCook {
     pub(crate) params: JohnsonCookParameters,
     pub(crate) shear: f64,
     pub(crate) bulk: f64,
-    fields: [FieldSpec; 5],
+    /// The five fields every particle keeps, then `local_damage` with
+    /// `damage.averaging_radius` ([`LOCAL_DAMAGE`]).
+    fields: Vec<FieldSpec>,
 }
+
+/// Index of `local_damage` among the state fields, when the damage is averaged.
+pub(crate) const LOCAL_DAMAGE: usize = 5;
 
 impl JohnsonCook {
     /// From checked parameters.
@@ -44,7 +49,7 @@ impl JohnsonCook {
             initial,
         };
         // Order matters: `update_stress` destructures the slices in this order.
-        let fields = [
+        let mut fields = vec![
             scalar("plastic_strain", FieldInit::Zero),
             scalar("damage", FieldInit::Zero),
             scalar("temperature", FieldInit::Constant(t0)),
@@ -55,6 +60,9 @@ impl JohnsonCook {
                 initial: FieldInit::Values(&IDENTITY3),
             },
         ];
+        if params.damage.is_some_and(|d| d.averaging_radius.is_some()) {
+            fields.push(scalar("local_damage", FieldInit::Zero));
+        }
         Self {
             params,
             shear,
@@ -115,6 +123,17 @@ impl ConstitutiveLaw for JohnsonCook {
         &self.fields
     }
 
+    /// With `damage.averaging_radius`: `damage` is `local_damage` averaged over it.
+    fn averaged_state(&self) -> Option<AveragedState> {
+        let radius = self.params.damage?.averaging_radius?;
+        Some(AveragedState {
+            local: LOCAL_DAMAGE,
+            averaged: 1,
+            radius,
+            cap: 1.0,
+        })
+    }
+
     fn shared_reads(&self) -> &[SharedRead] {
         // With a thermal physics the temperature is shared (conducted); without one the
         // law heats its own `temperature` adiabatically.
@@ -143,7 +162,10 @@ impl ConstitutiveLaw for JohnsonCook {
         let flow = &p.flow_stress;
         let heat_per_work = p.taylor_quinney / (rho0 * p.specific_heat);
         let t0 = p.initial_temperature();
-        let [strain_f, damage_f, temp_f, rate_f, inverse_f, ..] = batch.state.fields;
+        let [strain_f, damage_f, temp_f, rate_f, inverse_f, local_f, ..] = batch.state.fields;
+        // With an averaging radius the plastic strain drives `local_damage`; the core
+        // averages it into `damage` after the step.
+        let mut local_damage = (self.fields.len() > LOCAL_DAMAGE).then_some(local_f);
         let shared_temperature = batch.shared[0];
         let conducted = !shared_temperature.is_empty();
         let mut energy = 0.0;
@@ -213,9 +235,12 @@ impl ConstitutiveLaw for JohnsonCook {
             let internal_energy = rho0 * p.specific_heat * (new_temperature - t0);
             let mut pressure = p.equation_of_state.pressure(j, rho0, bulk, internal_energy);
             if !failed {
-                damage_f[k] = (damage_f[k]
-                    + self.damage_increment(increment, batch.dt, pressure * j, q, new_temperature))
-                .min(1.0);
+                let added =
+                    self.damage_increment(increment, batch.dt, pressure * j, q, new_temperature);
+                match local_damage.as_deref_mut() {
+                    Some(local) => local[k] += added,
+                    None => damage_f[k] = (damage_f[k] + added).min(1.0),
+                }
             }
             if damage_f[k] >= 1.0 {
                 deviatoric_stress = Vector3::zeros();

@@ -46,6 +46,7 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
     let shared_temperature = batch.shared[0];
     let conducted = !shared_temperature.is_empty();
     let failure = p.damage.map(|d| d.failure).unwrap_or_default();
+    let averaged = p.damage.and_then(|d| d.averaging_radius);
     let embed = |m: &mpm_core::math::Matrix<D>, diagonal: f64| {
         let mut out = Matrix3::identity() * diagonal;
         for r in 0..D {
@@ -136,8 +137,9 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
         let pressure = eos.pressure(j, rho0, bulk, energy);
         let (dp_dj, dp_denergy) = eos.pressure_slopes(j, rho0, bulk);
         let mut d_pressure = dp_dj * dj + dp_denergy * d_energy;
-        // The update's damage: the particle fails in this update when it reaches 1.
-        if !failed {
+        // The update's damage: the particle fails in this update when it reaches 1 (with
+        // an averaging radius only the core's average, after the step, fails it).
+        if !failed && averaged.is_none() {
             failed = damage_f[k]
                 + law.damage_increment(increment, batch.dt, pressure * j, q, new_temperature)
                 >= 1.0;

@@ -166,6 +166,7 @@ fn damage_at_constant_triaxiality_matches_the_integral() {
             d4: 0.014,
             d5: 1.12,
             failure: FailureMode::NoTension,
+            averaging_radius: None,
         });
         let bulk = params.youngs_modulus / (3.0 * (1.0 - 2.0 * params.poisson_ratio));
         let pressure = -bulk * f64::ln(j) / j;
@@ -421,4 +422,61 @@ fn consistent_tangent_matches_differences_of_the_update() {
         // stress: about 1e-6 relative noise at this step.
         assert!(error < 1e-5, "{name}: relative error {error}");
     }
+}
+
+/// With `damage.averaging_radius` the update drives `local_damage` (past 1) and leaves
+/// `damage`, which the core averages from it, and so the particle's failure alone.
+#[test]
+fn averaged_damage_is_driven_through_the_local_field() {
+    let mut params = copper();
+    params.flow_stress.hardening_modulus = 0.0;
+    params.flow_stress.strain_rate_sensitivity = 0.0;
+    let model = Damage {
+        d1: 0.01,
+        d2: 0.0,
+        d3: 0.0,
+        d4: 0.0,
+        d5: 0.0,
+        failure: FailureMode::NoTension,
+        averaging_radius: Some(1e-3),
+    };
+    params.damage = Some(model);
+    let law = JohnsonCook::new(params.clone());
+    let averaged = ConstitutiveLaw::averaged_state(&law).unwrap();
+    let names: Vec<&str> = ConstitutiveLaw::state_fields(&law)
+        .iter()
+        .map(|f| f.name)
+        .collect();
+    assert_eq!(
+        (names[averaged.local], names[averaged.averaged]),
+        ("local_damage", "damage")
+    );
+    assert_eq!(averaged.radius, 1e-3);
+    let mut point = Point::<3>::new(params);
+    for step in 1..=100 {
+        let stretch: f64 = 1e-3 * step as f64;
+        let iso = nalgebra::Vector3::new(
+            stretch.exp(),
+            (-0.5 * stretch).exp(),
+            (-0.5 * stretch).exp(),
+        );
+        point.step(Matrix3::from_diagonal(&iso), 1.0);
+    }
+    let (plastic, local) = (point.field("plastic_strain"), point.field("local_damage"));
+    assert!(plastic > 0.05, "{plastic}");
+    assert!(
+        (local - plastic / 0.01).abs() < 1e-9 * local,
+        "{local} {plastic}"
+    );
+    assert_eq!(point.field("damage"), 0.0);
+    assert!(point.von_mises() > 0.9 * 90e6, "the particle did not fail");
+    // Without the radius the same constants give no `local_damage` field.
+    let mut local_only = copper();
+    local_only.damage = Some(Damage {
+        averaging_radius: None,
+        ..model
+    });
+    let plain = JohnsonCook::new(local_only);
+    assert!(ConstitutiveLaw::averaged_state(&plain).is_none());
+    assert_eq!(ConstitutiveLaw::state_fields(&plain).len(), 5);
 }

@@ -197,7 +197,7 @@ impl PhaseMixture {
             plastic_strain: add(plastic.is_some(), "plastic_strain"),
             damage: add(plastic.is_some_and(|p| p.damage.is_some()), "damage"),
             local_damage: add(
-                plastic.is_some_and(|p| p.damage.is_some() && p.damage_averaging_radius.is_some()),
+                plastic.is_some_and(|p| p.damage.is_some_and(|d| d.averaging_radius.is_some())),
                 "local_damage",
             ),
         };
@@ -241,10 +241,10 @@ impl ConstitutiveLaw for PhaseMixture {
         &self.reads
     }
 
-    /// With `solid.plasticity.damage_averaging_radius`: `damage` is `local_damage`
+    /// With `solid.plasticity.damage.averaging_radius`: `damage` is `local_damage`
     /// averaged over the radius.
     fn averaged_state(&self) -> Option<AveragedState> {
-        let radius = self.params.solid.plasticity?.damage_averaging_radius?;
+        let radius = self.params.solid.plasticity?.damage?.averaging_radius?;
         Some(AveragedState {
             local: self.slots.local_damage?,
             averaged: self.slots.damage?,

@@ -43,12 +43,6 @@ pub struct SolidPlasticity {
     /// that drops at once, as a crack that opens does); absent: at once.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure_time: Option<f64>,
-    /// Radius, m, over which the damage is averaged (a material length): each particle's
-    /// plastic strain drives its `local_damage`, and its `damage`, which fails it at 1, is
-    /// the mean of that over the solid within the radius, so where and when a crack starts
-    /// does not depend on the cell. Absent: each particle's own (local) damage.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub damage_averaging_radius: Option<f64>,
 }
 
 impl SolidPlasticity {
@@ -68,19 +62,6 @@ impl SolidPlasticity {
                 issues.push(Issue::new(
                     format!("{path}.failure_time"),
                     "needs `damage`: without it no particle fails".to_string(),
-                ));
-            }
-        }
-        if let Some(r) = self.damage_averaging_radius {
-            if !(r.is_finite() && r > 0.0) {
-                issues.push(Issue::new(
-                    format!("{path}.damage_averaging_radius"),
-                    format!("must be a finite number > 0 metres (got {r})"),
-                ));
-            } else if self.damage.is_none() {
-                issues.push(Issue::new(
-                    format!("{path}.damage_averaging_radius"),
-                    "needs `damage`: without it there is no damage to average".to_string(),
                 ));
             }
         }
@@ -280,7 +261,6 @@ mod tests {
             },
             damage,
             failure_time: None,
-            damage_averaging_radius: None,
         }
     }
 
@@ -364,6 +344,7 @@ mod tests {
             d4: 0.0,
             d5: 0.0,
             failure: FailureMode::NoTension,
+            averaging_radius: None,
         };
         let law = law(Some(damage));
         let mu = 3e9;
@@ -431,6 +412,7 @@ mod tests {
             d4: 0.0,
             d5: 0.0,
             failure: FailureMode::NoTension,
+            averaging_radius: None,
         }));
         law.failure_time = Some(2.0);
         let trial = Matrix::<3>::new(30e6, 5e6, 0.0, 5e6, -6e6, 0.0, 0.0, 0.0, 0.0);
@@ -469,11 +451,12 @@ mod tests {
             d4: 0.0,
             d5: 0.0,
             failure: FailureMode::NoTension,
+            averaging_radius: None,
         };
-        let law = SolidPlasticity {
-            damage_averaging_radius: Some(2e-5),
-            ..law(Some(model))
-        };
+        let law = law(Some(Damage {
+            averaging_radius: Some(2e-5),
+            ..model
+        }));
         let trial = Matrix::<3>::from_diagonal(&mpm_core::math::Vector::<3>::new(80e6, 0.0, 0.0));
         let (mut strain, mut d, mut local) = (0.0, 0.5, 0.0);
         let mut s = trial;
@@ -498,15 +481,13 @@ mod tests {
         assert_eq!(d, 0.5, "the law does not write the averaged damage");
         assert!((von_mises(&s) - 50e6).abs() < 1.0, "returned, not failed");
         let bad = SolidPlasticity {
-            damage_averaging_radius: Some(0.0),
+            damage: Some(Damage {
+                averaging_radius: Some(0.0),
+                ..model
+            }),
             ..law
         };
-        assert_eq!(bad.check("p")[0].path, "p.damage_averaging_radius");
-        let without = SolidPlasticity {
-            damage: None,
-            ..law
-        };
-        assert_eq!(without.check("p")[0].path, "p.damage_averaging_radius");
+        assert_eq!(bad.check("p")[0].path, "p.damage.averaging_radius");
     }
 
     /// The consistent tangent equals central differences of the return: below yield, on
@@ -520,6 +501,7 @@ mod tests {
             d4: 0.0,
             d5: 0.0,
             failure: FailureMode::NoTension,
+            averaging_radius: None,
         }));
         law.flow_stress.hardening_modulus = 4e7;
         law.flow_stress.hardening_exponent = 0.4;
