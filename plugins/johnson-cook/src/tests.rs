@@ -441,7 +441,7 @@ fn averaged_damage_is_driven_through_the_local_field() {
         averaging_radius: Some(1e-3),
     };
     params.damage = Some(model);
-    let law = JohnsonCook::new(params.clone());
+    let law = JohnsonCook::new(params);
     let averaged = ConstitutiveLaw::averaged_state(&law).unwrap();
     let names: Vec<&str> = ConstitutiveLaw::state_fields(&law)
         .iter()
