@@ -247,6 +247,20 @@ pub(crate) fn project<const D: usize>(s: &Matrix<3>) -> (Matrix<D>, f64) {
 mod tests {
     use super::*;
 
+    /// Damage failing at plastic strain `strain` whatever the triaxiality, keeping only
+    /// compressive mean stress.
+    fn constant_failure_strain(strain: f64) -> Damage {
+        Damage {
+            d1: strain,
+            d2: 0.0,
+            d3: 0.0,
+            d4: 0.0,
+            d5: 0.0,
+            failure: FailureMode::NoTension,
+            averaging_radius: None,
+        }
+    }
+
     fn law(damage: Option<Damage>) -> SolidPlasticity {
         SolidPlasticity {
             flow_stress: FlowStress {
@@ -337,15 +351,7 @@ mod tests {
     /// Damage adds Δεₚ/ε_f; at 1 the particle keeps only a compressive mean stress.
     #[test]
     fn damage_accumulates_and_a_failed_particle_holds_no_tension() {
-        let damage = Damage {
-            d1: 0.01,
-            d2: 0.0,
-            d3: 0.0,
-            d4: 0.0,
-            d5: 0.0,
-            failure: FailureMode::NoTension,
-            averaging_radius: None,
-        };
+        let damage = constant_failure_strain(0.01);
         let law = law(Some(damage));
         let mu = 3e9;
         // Uniaxial tension trial 53 MPa: overshoot 3 MPa, Δεₚ = 3e6/9e9.
@@ -405,15 +411,7 @@ mod tests {
     /// by e^(−dt/τ) per step, instead of at once.
     #[test]
     fn a_failed_particle_sheds_its_tension_over_the_failure_time() {
-        let mut law = law(Some(Damage {
-            d1: 0.01,
-            d2: 0.0,
-            d3: 0.0,
-            d4: 0.0,
-            d5: 0.0,
-            failure: FailureMode::NoTension,
-            averaging_radius: None,
-        }));
+        let mut law = law(Some(constant_failure_strain(0.01)));
         law.failure_time = Some(2.0);
         let trial = Matrix::<3>::new(30e6, 5e6, 0.0, 5e6, -6e6, 0.0, 0.0, 0.0, 0.0);
         let mut s = trial;
@@ -444,15 +442,7 @@ mod tests {
     /// (averaged) damage and the stress's failure to the core's average.
     #[test]
     fn averaged_damage_leaves_failure_to_the_average() {
-        let model = Damage {
-            d1: 0.001,
-            d2: 0.0,
-            d3: 0.0,
-            d4: 0.0,
-            d5: 0.0,
-            failure: FailureMode::NoTension,
-            averaging_radius: None,
-        };
+        let model = constant_failure_strain(0.001);
         let law = law(Some(Damage {
             averaging_radius: Some(2e-5),
             ..model
@@ -494,15 +484,7 @@ mod tests {
     /// the yield surface with hardening and heat, and for a failed particle shedding.
     #[test]
     fn the_tangent_matches_differences_of_the_return() {
-        let mut law = law(Some(Damage {
-            d1: 0.5,
-            d2: 0.0,
-            d3: 0.0,
-            d4: 0.0,
-            d5: 0.0,
-            failure: FailureMode::NoTension,
-            averaging_radius: None,
-        }));
+        let mut law = law(Some(constant_failure_strain(0.5)));
         law.flow_stress.hardening_modulus = 4e7;
         law.flow_stress.hardening_exponent = 0.4;
         law.failure_time = Some(3.0);

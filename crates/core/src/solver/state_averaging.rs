@@ -6,9 +6,10 @@
 //! size has used up its ductility, not where one particle at a singular corner has, so the
 //! onset converges as the cell shrinks.
 //!
-//! Neighbours are found through particles sorted by cells one radius wide (a sort and a
-//! binary search per neighbour cell), in buffers kept between steps: no allocation per step
-//! once they have grown. The averaged field lags the local one by a step: the law sees this
+//! Neighbours are found through particles sorted by cells one radius wide (a sort, then a
+//! binary search among the occupied cells per neighbour cell), in buffers kept between
+//! steps: no allocation per step once they have grown. A particle with no nonzero local
+//! value in the cells around it averages to 0 without a pair visited. The averaged field lags the local one by a step: the law sees this
 //! step's average in the next step.
 
 use crate::material::AveragedState;
@@ -22,6 +23,9 @@ pub(super) struct StateAveraging {
     groups: Vec<(usize, AveragedState)>,
     /// (cell, index within the group), sorted by cell.
     order: Vec<([i64; 3], u32)>,
+    /// Each occupied cell's run of `order` (cell, first, end) and whether any of its
+    /// particles has a nonzero local value.
+    runs: Vec<([i64; 3], u32, u32, bool)>,
     /// Current volume of the group's particles.
     volume: Vec<f64>,
     /// The new averages, before they are written.
@@ -40,6 +44,7 @@ impl StateAveraging {
         (!groups.is_empty()).then(|| Self {
             groups,
             order: Vec::new(),
+            runs: Vec::new(),
             volume: Vec::new(),
             averaged: Vec::new(),
         })
@@ -73,9 +78,25 @@ impl StateAveraging {
                 }),
             );
             let local = &particles.groups[g].state[spec.local];
-            let order = &self.order;
-            let volume = &self.volume;
+            // Each cell's run of `order`, and whether any of its particles has a local
+            // value: a particle with no such cell around it averages to exactly 0, and is
+            // skipped (most of a body, where nothing has yielded).
+            self.runs.clear();
+            let mut start = 0;
+            while start < self.order.len() {
+                let key = self.order[start].0;
+                let mut end = start;
+                let mut active = false;
+                while end < self.order.len() && self.order[end].0 == key {
+                    active |= local[self.order[end].1 as usize] != 0.0;
+                    end += 1;
+                }
+                self.runs.push((key, start as u32, end as u32, active));
+                start = end;
+            }
+            let (order, runs, volume) = (&self.order, &self.runs, &self.volume);
             let reach: i64 = if D == 3 { 1 } else { 0 };
+            let run_of = |key: [i64; 3]| runs.binary_search_by(|r| r.0.cmp(&key)).ok();
             self.averaged.clear();
             self.averaged.resize(range.len(), 0.0);
             self.averaged
@@ -84,22 +105,31 @@ impl StateAveraging {
                 .for_each(|(k, out)| {
                     let x = positions[k];
                     let home = cell(&x);
-                    let (mut weighted, mut total) = (0.0, 0.0);
+                    let mut around = [None; 27];
+                    let mut n = 0;
+                    let mut active = false;
                     for dx in -1..=1 {
                         for dy in -1..=1 {
                             for dz in -reach..=reach {
-                                let key = [home[0] + dx, home[1] + dy, home[2] + dz];
-                                let first = order.partition_point(|(c, _)| *c < key);
-                                for &(c, j) in &order[first..] {
-                                    if c != key {
-                                        break;
-                                    }
-                                    let j = j as usize;
-                                    if (positions[j] - x).norm() <= radius {
-                                        weighted += volume[j] * local[j];
-                                        total += volume[j];
-                                    }
-                                }
+                                let r = run_of([home[0] + dx, home[1] + dy, home[2] + dz]);
+                                active |= r.is_some_and(|r| runs[r].3);
+                                around[n] = r;
+                                n += 1;
+                            }
+                        }
+                    }
+                    if !active {
+                        *out = 0.0;
+                        return;
+                    }
+                    let (mut weighted, mut total) = (0.0, 0.0);
+                    for r in around[..n].iter().flatten() {
+                        let (_, first, last, _) = runs[*r];
+                        for &(_, j) in &order[first as usize..last as usize] {
+                            let j = j as usize;
+                            if (positions[j] - x).norm() <= radius {
+                                weighted += volume[j] * local[j];
+                                total += volume[j];
                             }
                         }
                     }
