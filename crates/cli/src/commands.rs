@@ -558,6 +558,9 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             let job = crate::client::wait(&remote, &id, false)?;
             outln!("status {}", job["status"].as_str().unwrap_or("?"))?;
             outln!("{}", serde_json::to_string_pretty(&job["metrics"])?)?;
+            for line in crate::process_report::job_report(&job["metrics"]) {
+                outln!("report         {line}")?;
+            }
             if !job["failure"].is_null() {
                 outln!("failure {}", job["failure"])?;
             }

@@ -2,7 +2,7 @@
 //! fill left (fill time, voids), the peak von Mises stress of each material, and damage
 //! (failed particles, cracks, the longest crack, the first failure); then where the first
 //! crack started. Every figure is also in the run's metrics (`stages[i]`), which the job
-//! service stores with the job.
+//! service stores with the job; `mpm submit --wait` prints the same report from them.
 
 use mpm_core::damage_measures::DamageFigures;
 use mpm_core::output::{Metrics, StageSummary};
@@ -54,6 +54,17 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
         });
     }
     lines
+}
+
+/// The report of a job's metrics as the service stores them (JSON): `mpm submit --wait`
+/// prints it below the metrics. Empty for a job without stages.
+pub(crate) fn job_report(metrics: &serde_json::Value) -> Vec<String> {
+    let stages: Vec<StageSummary> =
+        serde_json::from_value(metrics["stages"].clone()).unwrap_or_default();
+    process_report(&Metrics {
+        stages,
+        ..Metrics::default()
+    })
 }
 
 /// One material's damage: the largest, the failed particles, their cracks and the first
@@ -168,5 +179,9 @@ mod tests {
             "crack onset: none (no particle failed)"
         );
         assert!(process_report(&Metrics::default()).is_empty());
+        // A job's stored metrics give the same report.
+        let stored = serde_json::to_value(&m).unwrap();
+        assert_eq!(job_report(&stored), lines);
+        assert!(job_report(&serde_json::json!({"outcome": "finished"})).is_empty());
     }
 }

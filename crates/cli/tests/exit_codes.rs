@@ -400,6 +400,25 @@ fn client_commands_follow_the_table_against_a_real_server() {
         .expect("the job id is printed")
         .to_string();
     let id = id.as_str();
+    // A staged job: the process report follows its metrics.
+    let staged = mpm(
+        &with(&[
+            "submit",
+            "bar.json",
+            "--wait",
+            "--set",
+            r#"stages=[{"name":"first","changes":{"solver":{"end_time":0.005}}},{"name":"second","changes":{"solver":{"end_time":0.01}}}]"#,
+        ]),
+        d,
+    );
+    assert_eq!(staged.status.code(), Some(0), "{}", text(&staged));
+    let report = String::from_utf8_lossy(&staged.stdout).into_owned();
+    for stage in ["first", "second"] {
+        assert!(
+            report.contains(&format!("report         {stage}: peak von Mises, MPa: ")),
+            "{report}"
+        );
+    }
 
     let mut unstable = with(&[
         "submit",
