@@ -28,24 +28,20 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
             lines.push(format!("{name}: {}", damage_line(material, d)));
         }
     }
-    let first = m.stages.iter().find_map(|stage| {
+    let first = m.stages.iter().enumerate().find_map(|(index, stage)| {
         stage
             .damage
             .iter()
             .filter_map(|(material, d)| d.onset.map(|o| (material, o)))
             .min_by(|a, b| a.1.time.total_cmp(&b.1.time))
-            .map(|(material, o)| (stage, material, o))
+            .map(|(material, o)| (index, stage, material, o))
     });
     if !m.stages.is_empty() && m.stages.iter().any(|s| !s.damage.is_empty()) {
         lines.push(match first {
-            Some((stage, material, o)) => format!(
+            Some((index, stage, material, o)) => format!(
                 "crack onset: stage {} ({} of {}), {material}, t = {:.6e} s at {}",
                 stage.name,
-                1 + m
-                    .stages
-                    .iter()
-                    .position(|s| s.name == stage.name)
-                    .unwrap_or(0),
+                index + 1,
                 m.stages.len(),
                 o.time,
                 position(&o.position)

@@ -84,6 +84,15 @@ impl<const D: usize> Point<D> {
 use mpm_core::material::FieldInit;
 use nalgebra::Matrix3;
 
+/// The volume-preserving stretch of logarithmic strain `stretch` along x.
+fn uniaxial_isochoric(stretch: f64) -> Matrix3<f64> {
+    Matrix3::from_diagonal(&nalgebra::Vector3::new(
+        stretch.exp(),
+        (-0.5 * stretch).exp(),
+        (-0.5 * stretch).exp(),
+    ))
+}
+
 #[test]
 fn uniaxial_strain_follows_the_closed_form_flow_stress() {
     // Compression at a constant log strain rate, isothermal at 600 K. Once plastic, the
@@ -178,13 +187,7 @@ fn damage_at_constant_triaxiality_matches_the_integral() {
         let dt = 1.0; // rate 1e-3/s: below the reference rate
         let mut failed_at = None;
         for step in 1..=8000 {
-            let stretch: f64 = 1e-3 * step as f64;
-            let iso = nalgebra::Vector3::new(
-                stretch.exp(),
-                (-0.5 * stretch).exp(),
-                (-0.5 * stretch).exp(),
-            );
-            let f = Matrix3::from_diagonal(&(iso * j.powf(1.0 / 3.0)));
+            let f = uniaxial_isochoric(1e-3 * step as f64) * j.powf(1.0 / 3.0);
             point.step(f, dt);
             let plastic = point.field("plastic_strain");
             let damage = point.field("damage");
@@ -454,13 +457,7 @@ fn averaged_damage_is_driven_through_the_local_field() {
     assert_eq!(averaged.radius, 1e-3);
     let mut point = Point::<3>::new(params);
     for step in 1..=100 {
-        let stretch: f64 = 1e-3 * step as f64;
-        let iso = nalgebra::Vector3::new(
-            stretch.exp(),
-            (-0.5 * stretch).exp(),
-            (-0.5 * stretch).exp(),
-        );
-        point.step(Matrix3::from_diagonal(&iso), 1.0);
+        point.step(uniaxial_isochoric(1e-3 * step as f64), 1.0);
     }
     let (plastic, local) = (point.field("plastic_strain"), point.field("local_damage"));
     assert!(plastic > 0.05, "{plastic}");
