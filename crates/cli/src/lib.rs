@@ -56,6 +56,9 @@ pub fn default_registry() -> Registry {
     registry
         .register(Box::new(mpm_underfill::UnderfillPlugin))
         .expect("built-in plugins have distinct names");
+    registry
+        .register(Box::new(mpm_viscoplastic::ViscoplasticPlugin))
+        .expect("built-in plugins have distinct names");
     registry.set_particle_store_reader(Box::new(mpm_io::read_particles));
     registry
 }

@@ -1,10 +1,12 @@
 //! The process report `mpm run` prints after a staged run's summary: per stage, what the
 //! fill left (fill time, voids), the peak von Mises stress of each material, and damage
-//! (failed particles, cracks, the longest crack, the first failure); then where the first
-//! crack started. Every figure is also in the run's metrics (`stages[i]`), which the job
+//! (failed particles, cracks, the longest crack, the first failure), the inelastic work of
+//! a solder law with its fatigue life; then where the first crack started and the life the
+//! last stage (cycle) gives. Every figure is also in the run's metrics (`stages[i]`), which the job
 //! service stores with the job; `mpm submit --wait` prints the same report from them.
 
 use mpm_core::damage_measures::DamageFigures;
+use mpm_core::fatigue_measures::FatigueFigures;
 use mpm_core::output::{Metrics, StageSummary};
 
 /// The report's lines (empty for a run without stages).
@@ -26,6 +28,9 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
         }
         for (material, d) in stage.damage.iter().filter(|(_, d)| d.peak > 0.0) {
             lines.push(format!("{name}: {}", damage_line(material, d)));
+        }
+        for (material, f) in stage.fatigue.iter().filter(|(_, f)| f.work_in_stage > 0.0) {
+            lines.push(format!("{name}: {}", fatigue_line(material, f)));
         }
     }
     let first = m.stages.iter().enumerate().find_map(|(index, stage)| {
@@ -49,7 +54,31 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
             None => "crack onset: none (no particle failed)".to_string(),
         });
     }
+    if let Some(last) = m.stages.last() {
+        for (material, f) in &last.fatigue {
+            if let Some(n) = f.cycles_to_crack {
+                lines.push(format!(
+                    "fatigue life: {material}, {n:.0} cycles to crack initiation at the work per cycle of stage {}",
+                    last.name
+                ));
+            }
+        }
+    }
     lines
+}
+
+/// One material's inelastic work in a stage, and the cycles to crack it gives
+/// (`solder inelastic work 0.0123 MJ/m³ in the stage, 0.456 in all; 4321 cycles ...`).
+fn fatigue_line(material: &str, f: &FatigueFigures) -> String {
+    let mut line = format!(
+        "{material} inelastic work {:.4} MJ/m³ in the stage ({:.4} in all, volume average)",
+        f.work_in_stage / 1e6,
+        f.work / 1e6
+    );
+    if let Some(n) = f.cycles_to_crack {
+        line += &format!("; {n:.0} cycles to crack initiation were every cycle like it");
+    }
+    line
 }
 
 /// The report of a job's metrics as the service stores them (JSON): `mpm submit --wait`
@@ -179,5 +208,34 @@ mod tests {
         let stored = serde_json::to_value(&m).unwrap();
         assert_eq!(job_report(&stored), lines);
         assert!(job_report(&serde_json::json!({"outcome": "finished"})).is_empty());
+    }
+
+    #[test]
+    fn a_solder_stage_reports_its_inelastic_work_and_the_life_it_gives() {
+        let mut cycle = stage("cycle-1", None);
+        cycle.fatigue.insert(
+            "solder".into(),
+            FatigueFigures {
+                work: 0.5e6,
+                work_in_stage: 0.2e6,
+                cycles_to_crack: Some(2631.6),
+            },
+        );
+        let lines = process_report(&Metrics {
+            stages: vec![cycle],
+            ..Metrics::default()
+        });
+        assert!(
+            lines.contains(
+                &"cycle-1: solder inelastic work 0.2000 MJ/m³ in the stage (0.5000 in all, volume \
+              average); 2632 cycles to crack initiation were every cycle like it"
+                    .to_string()
+            )
+        );
+        assert_eq!(
+            lines.last().unwrap(),
+            "fatigue life: solder, 2632 cycles to crack initiation at the work per cycle of \
+             stage cycle-1"
+        );
     }
 }

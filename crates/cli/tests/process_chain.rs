@@ -314,3 +314,28 @@ fn a_bad_averaging_radius_is_refused_at_its_path() {
         );
     }
 }
+
+/// The process example's SAC305 bump (`anand`): a bad constant is refused at its path.
+#[test]
+fn a_bad_solder_constant_is_refused_at_its_path() {
+    for (set, path) in [
+        (
+            "materials.solder.rate_sensitivity=2",
+            "materials.solder.rate_sensitivity",
+        ),
+        (
+            "materials.solder.initial_resistance=0",
+            "materials.solder.initial_resistance",
+        ),
+        (
+            "materials.solder.fatigue.exponent=0.5",
+            "materials.solder.fatigue.exponent",
+        ),
+    ] {
+        let issues = invalid_example("underfill-process-2d.json", &[set]);
+        assert!(
+            issues.iter().any(|i| i.starts_with(path)),
+            "{set}: {issues:?}"
+        );
+    }
+}

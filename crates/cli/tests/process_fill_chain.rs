@@ -15,7 +15,7 @@ fn process_scene() -> Value {
 
 /// Index of a material in the `material` output field (the scene's materials in name
 /// order).
-const UNDERFILL: f64 = 2.0;
+const UNDERFILL: f64 = 3.0;
 
 #[test]
 fn the_fill_hands_its_liquid_and_its_void_to_the_cure() {
@@ -107,7 +107,8 @@ fn the_fill_hands_its_liquid_and_its_void_to_the_cure() {
 
 #[test]
 fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
-    // The fill stage without the inclusion, die and substrate bounding the gap: the front
+    // The fill stage without the inclusion and the bump, die and substrate bounding the
+    // gap: the front
     // against x² = hσcosθ t/(3μ), measured over the underfill's particles only. Measured:
     // front error 0.024, fill time −8.6% (5 cells across the gap); at 10 cells 0.013 and
     // −4.2% (README).
@@ -119,10 +120,14 @@ fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
         .as_array()
         .unwrap()
         .iter()
-        .filter(|b| b["name"] != "inclusion")
+        .filter(|b| b["name"] != "inclusion" && b["name"] != "bump")
         .cloned()
         .collect();
     s["bodies"] = Value::Array(bodies);
+    s["physics"]["underfill"]
+        .as_object_mut()
+        .unwrap()
+        .remove("vent_regions");
     s["bodies"][1].as_object_mut().unwrap().remove("holes");
     s["reference"] = json!({
         "type": "capillary_filling", "axis": 0, "entrance": 1e-3, "length": 1e-3, "gap": 5e-5,
@@ -231,4 +236,37 @@ fn the_chain_cracks_from_its_void_in_the_first_cycle_and_the_crack_grows() {
         .1;
     let in_store = last.iter().filter(|&&d| d >= 1.0).count() as u64;
     assert_eq!(in_store, per_cycle[0]);
+    // The solder bump's inelastic work grows every stage; the cycles settle (a stable
+    // hysteresis loop: cycles 2 and 3 within 5%; measured 0.1292 and 0.1286 MJ/m³), and
+    // the life each gives is the scene's fatigue law at that work.
+    let law = &process_scene()["materials"]["solder"]["fatigue"];
+    let (c, k) = (
+        law["coefficient"].as_f64().unwrap(),
+        law["exponent"].as_f64().unwrap(),
+    );
+    let solder = |name: &str| {
+        stages.iter().find(|s| s["name"] == name).unwrap()["fatigue"]["solder"].clone()
+    };
+    let mut before = 0.0;
+    for name in ["cure", "cool", "cycle-1", "cycle-2", "cycle-3"] {
+        let f = solder(name);
+        let (work, in_stage) = (
+            f["work"].as_f64().unwrap(),
+            f["work_in_stage"].as_f64().unwrap(),
+        );
+        assert!(in_stage > 0.0 && work > before, "{name}: {f}");
+        assert!(
+            (work - before - in_stage).abs() <= 1e-9 * work,
+            "{name}: {f}"
+        );
+        let cycles = f["cycles_to_crack"].as_f64().unwrap();
+        let expected = c * in_stage.powf(k);
+        assert!((cycles - expected).abs() <= 1e-12 * expected, "{name}: {f}");
+        before = work;
+    }
+    let per_cycle = ["cycle-2", "cycle-3"].map(|n| solder(n)["work_in_stage"].as_f64().unwrap());
+    assert!(
+        (per_cycle[1] - per_cycle[0]).abs() < 0.05 * per_cycle[0],
+        "work per cycle {per_cycle:?}"
+    );
 }

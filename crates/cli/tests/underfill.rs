@@ -250,6 +250,14 @@ fn underfill_input_errors_name_their_path() {
     assert!(has(&e, "physics.underfill.bumps.pitch"), "{e:?}");
     let e = issues(&[r#"physics.underfill.vents=["x-"]"#]);
     assert!(has(&e, "physics.underfill.vents[0]"), "{e:?}");
+    // A vent region is a cross-section's; capillary-gap is gap-averaged.
+    let e = issues(&[r#"physics.underfill.vent_regions=[{"min":[0,0],"max":[1e-3,1e-3]}]"#]);
+    assert!(has(&e, "physics.underfill.vent_regions[0]"), "{e:?}");
+    let e = common::invalid_example(
+        "underfill-process-2d.json",
+        &[r#"physics.underfill.vent_regions=[{"min":[0,0],"max":[0,1e-3]}]"#],
+    );
+    assert!(has(&e, "physics.underfill.vent_regions[0].max[0]"), "{e:?}");
     let e = issues(&[r#"solver.mechanics="dynamic""#]);
     assert!(has(&e, "solver.mechanics"), "{e:?}");
     let e = issues(&["physics.underfill.reservoirs=[]"]);

@@ -8,6 +8,7 @@ pub mod boundary;
 pub mod checkpoint;
 pub mod damage_measures;
 pub mod energy_ledger;
+pub mod fatigue_measures;
 pub mod grid;
 pub mod kernels;
 pub mod linear_solvers;

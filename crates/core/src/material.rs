@@ -48,6 +48,12 @@ pub struct AveragedState {
     pub cap: f64,
 }
 
+/// Name of the one-component state field in which a law accumulates its inelastic work
+/// density, J per m³ of reference volume; the stage figures average it per material and
+/// turn its increment over a stage (a thermal cycle) into cycles to crack
+/// ([`ConstitutiveLaw::cycles_to_crack`], `fatigue_measures.rs`).
+pub const INELASTIC_WORK: &str = "inelastic_work";
+
 /// Initial value of a state field.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FieldInit {
@@ -179,6 +185,13 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn reports_plastic_work(&self) -> bool {
         false
     }
+    /// Cycles to crack initiation of a law with a fatigue law, from the volume-averaged
+    /// inelastic work density of one cycle, J/m³ (see [`INELASTIC_WORK`]); `None`, the
+    /// default, for a law without one or at no work.
+    fn cycles_to_crack(&self, work_per_cycle: f64) -> Option<f64> {
+        let _ = work_per_cycle;
+        None
+    }
     /// Computes the Cauchy stress of every particle in the batch and reports the batch's
     /// strain energy and largest wave speed.
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats;
@@ -246,6 +259,8 @@ pub trait Material: Send + Sync {
     fn shared_reads(&self) -> &[SharedRead];
     /// See [`ConstitutiveLaw::reports_plastic_work`].
     fn reports_plastic_work(&self) -> bool;
+    /// See [`ConstitutiveLaw::cycles_to_crack`].
+    fn cycles_to_crack(&self, work_per_cycle: f64) -> Option<f64>;
     /// 2D (plane strain) batch update.
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats;
     /// 3D batch update.
@@ -288,6 +303,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn reports_plastic_work(&self) -> bool {
         ConstitutiveLaw::reports_plastic_work(self)
+    }
+    fn cycles_to_crack(&self, work_per_cycle: f64) -> Option<f64> {
+        ConstitutiveLaw::cycles_to_crack(self, work_per_cycle)
     }
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats {
         self.update_stress::<2>(batch)

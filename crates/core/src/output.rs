@@ -104,6 +104,11 @@ pub struct StageSummary {
     /// cracks and the longest one's length, and the stage's first failure.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub damage: std::collections::BTreeMap<String, crate::damage_measures::DamageFigures>,
+    /// Inelastic work of each material whose law accumulates it (`fatigue_measures.rs`):
+    /// the average at the stage's end, its increase over the stage, and the cycles to crack
+    /// that increase per cycle gives under the law's fatigue law.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub fatigue: std::collections::BTreeMap<String, crate::fatigue_measures::FatigueFigures>,
 }
 
 /// One output frame. `values[i]` holds field `i` for every particle in output order,

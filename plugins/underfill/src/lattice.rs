@@ -2,7 +2,7 @@
 //! each (where the gap's particles are, less the solder bumps) and its links to the domain
 //! faces (reservoirs and vents).
 
-use crate::parameters::{BumpArray, FlowMode, Reservoir};
+use crate::parameters::{BumpArray, FlowMode, Reservoir, VentRegion};
 use mpm_core::scene::Side;
 
 /// Cells with less open space than this take no part in the flow.
@@ -153,6 +153,8 @@ pub(crate) struct LatticeInput<'a> {
     pub reservoirs: &'a [Reservoir],
     /// Vent faces.
     pub vents: &'a [Side],
+    /// Cross-section boxes that vent across the plane.
+    pub vent_regions: &'a [VentRegion],
 }
 
 /// Builds the lattice.
@@ -289,6 +291,16 @@ pub(crate) fn build(input: &LatticeInput<'_>) -> Lattice {
             if input.vents.contains(&side) {
                 lattice.vented[c] = true;
             }
+        }
+    }
+    for c in 0..count {
+        if lattice.is_open(c)
+            && input
+                .vent_regions
+                .iter()
+                .any(|r| r.contains(lattice.centre(c)))
+        {
+            lattice.vented[c] = true;
         }
     }
     lattice

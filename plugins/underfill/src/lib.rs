@@ -47,7 +47,7 @@ pub use liquid::{Liquid, LiquidParameters};
 pub use liquid_references::{MARTIN_MOYCE_N2, martin_moyce_front};
 pub use parameters::{
     Air, BumpArray, BumpPattern, FlowMode, Fluid, FluidSection, InitialFill, Reservoir,
-    UnderfillParameters,
+    UnderfillParameters, VentRegion,
 };
 pub use particle_voids::{LiquidVoids, LiquidVoidsParameters};
 pub use underfill::{FILL_COLUMNS, FILL_TABLE, Underfill, VOIDS_TABLE};

@@ -37,6 +37,12 @@ pub struct UnderfillParameters {
     /// path to every vent is a void. Default: every face that is not a reservoir.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vents: Option<Vec<Side>>,
+    /// Cross-section mode: boxes of the section where the air leaves across its plane, as
+    /// beside a solder bump, where the real gap opens around the joint. Open cells whose
+    /// centres lie inside are vents; a bump in a section closes the gap, and without such
+    /// a box all air between it and the front would be trapped.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub vent_regions: Vec<VentRegion>,
     /// Liquid present at t = 0.
     #[serde(default)]
     pub initial_fill: InitialFill,
@@ -235,6 +241,23 @@ pub struct Reservoir {
     /// axis (an edge segment), m; default: the whole face.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub span: Option<[f64; 2]>,
+}
+
+/// A box of a cross-section where the air escapes across the section's plane.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct VentRegion {
+    /// Lower corner, m.
+    pub min: [f64; 2],
+    /// Upper corner, m.
+    pub max: [f64; 2],
+}
+
+impl VentRegion {
+    /// Whether point `x` lies inside.
+    pub fn contains(&self, x: [f64; 2]) -> bool {
+        (0..2).all(|a| x[a] >= self.min[a] && x[a] <= self.max[a])
+    }
 }
 
 /// Liquid present at t = 0.
@@ -481,6 +504,23 @@ impl UnderfillParameters {
                     issues.push(Issue::new(
                         format!("{path}.vents[{k}]"),
                         "a face cannot be both a reservoir and a vent",
+                    ));
+                }
+            }
+        }
+        for (k, r) in self.vent_regions.iter().enumerate() {
+            let rp = format!("{path}.vent_regions[{k}]");
+            if self.mode != FlowMode::CrossSection {
+                issues.push(Issue::new(
+                    rp.clone(),
+                    "vent regions are for the cross_section mode (a gap-averaged gap vents at its faces)",
+                ));
+            }
+            for a in 0..2 {
+                if !(r.min[a].is_finite() && r.max[a].is_finite() && r.max[a] > r.min[a]) {
+                    issues.push(Issue::new(
+                        format!("{rp}.max[{a}]"),
+                        "needs max > min along each axis",
                     ));
                 }
             }

@@ -53,6 +53,7 @@ fn strip(n: usize, dx: f64, bumps: Option<&BumpArray>) -> crate::lattice::Lattic
         bumps,
         reservoirs: &reservoirs,
         vents: &[Side::XMax],
+        vent_regions: &[],
     })
 }
 

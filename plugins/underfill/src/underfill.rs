@@ -122,6 +122,7 @@ impl Underfill {
             bumps: p.bumps.as_ref(),
             reservoirs: &p.reservoirs,
             vents: &self.vents,
+            vent_regions: &p.vent_regions,
         });
         let n = lattice.len();
         let fill: Vec<f64> = (0..n)

@@ -9,6 +9,7 @@ use super::simulation::Simulation;
 use super::{DimensionDispatch, RunError, RunObserver, SimulationVisitor, dispatch};
 use crate::checkpoint::Checkpoint;
 use crate::damage_measures::DamageFigures;
+use crate::fatigue_measures::{FatigueFigures, fatigue_figures};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::output::{Metrics, Outcome, OutputSink, StageInfo, StageSummary};
@@ -33,6 +34,7 @@ pub(super) fn run_stages(
         resume: bool,
         tag: serde_json::Value,
         averaging_radius: Option<f64>,
+        work_before: BTreeMap<String, f64>,
     }
     impl SimulationVisitor for Stage<'_> {
         type Output = Result<(Metrics, Checkpoint, StressFigures), RunError>;
@@ -50,6 +52,7 @@ pub(super) fn run_stages(
                     .map(|r| averaged_peak_von_mises(&sim.particles, r))
                     .unwrap_or_default(),
                 damage: metrics.damage.clone(),
+                fatigue: fatigue_figures(&sim.particles, &self.work_before),
             };
             Ok((metrics, end, figures))
         }
@@ -104,6 +107,11 @@ pub(super) fn run_stages(
             "removed": removed,
             "removed_at_hand_over": removed_here,
         });
+        // The inelastic work the stage starts from: where the stage before left it.
+        let work_before = summaries
+            .last()
+            .map(|s| s.fatigue.iter().map(|(k, f)| (k.clone(), f.work)).collect())
+            .unwrap_or_default();
         let filtered;
         let stage_scene = if removed.is_empty() {
             &*stage.scene
@@ -120,6 +128,7 @@ pub(super) fn run_stages(
                 resume: resumed_here,
                 tag,
                 averaging_radius: stage_scene.scene.output.stress_averaging_radius,
+                work_before,
             },
         )?;
         summaries.push(StageSummary {
@@ -137,6 +146,7 @@ pub(super) fn run_stages(
             peak_von_mises: stress.peak,
             averaged_von_mises: stress.averaged,
             damage: stress.damage,
+            fatigue: stress.fatigue,
         });
         steps_before = metrics.steps;
         let finished = metrics.outcome == Some(Outcome::Finished);
@@ -158,12 +168,13 @@ pub(super) fn run_stages(
     Ok(last)
 }
 
-/// The stress and damage figures of a stage's end, per material (`stress_measures`,
-/// `damage_measures`).
+/// The stress, damage and fatigue figures of a stage's end, per material
+/// (`stress_measures`, `damage_measures`, `fatigue_measures`).
 struct StressFigures {
     peak: BTreeMap<String, f64>,
     averaged: BTreeMap<String, f64>,
     damage: BTreeMap<String, DamageFigures>,
+    fatigue: BTreeMap<String, FatigueFigures>,
 }
 
 /// The stage a checkpoint of a staged run was written in, and the summaries of the stages
