@@ -12,6 +12,7 @@ pub mod fatigue_measures;
 pub mod grid;
 pub mod kernels;
 pub mod linear_solvers;
+pub mod log_strain;
 pub mod material;
 pub mod math;
 pub mod output;

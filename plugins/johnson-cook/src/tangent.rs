@@ -4,7 +4,7 @@
 //!
 //! With be = Fe Feᵀ (Fe = F Fp⁻¹) and the trial logarithmic strain ε = ½ ln be:
 //! - δε in the principal axes of be: δε'ᵢⱼ = ½ (Nᵀ δbe N)ᵢⱼ (ln bᵢ − ln bⱼ)/(bᵢ − bⱼ)
-//!   (1/bᵢ on the diagonal), δbe = δFe Feᵀ + Fe δFeᵀ;
+//!   (1/bᵢ on the diagonal), δbe = δFe Feᵀ + Fe δFeᵀ (`mpm_core::log_strain`);
 //! - the radial return scales the deviatoric trial strain e = dev ε: τ_dev = s·2μe with
 //!   s = 1 − 3μΔγ/q_trial and q_trial − 3μΔγ = σ_y(εₚ + Δγ, Δγ/dt, T), so
 //!   δq_trial = 6μ² e:δε / q_trial and δΔγ = δq_trial / (3μ + H), H = ∂σ_y/∂εₚ + ∂σ_y/∂ε̇ / dt;
@@ -16,24 +16,10 @@
 
 use crate::damage::FailureMode;
 use crate::johnson_cook::JohnsonCook;
+use mpm_core::log_strain::{deviator, log_strain_change};
 use mpm_core::material::TangentBatch;
-use mpm_core::math::{determinant, inverse, symmetric_eigen3};
+use mpm_core::math::{determinant, inverse};
 use nalgebra::Matrix3;
-
-/// (ln a − ln b)/(a − b), also where a and b (both positive) nearly coincide.
-fn log_slope(a: f64, b: f64) -> f64 {
-    let r = a / b - 1.0;
-    if r.abs() < 1e-8 {
-        (1.0 - 0.5 * r) / b
-    } else {
-        r.ln_1p() / (r * b)
-    }
-}
-
-/// The deviatoric part of a 3×3 tensor.
-fn deviator(m: &Matrix3<f64>) -> Matrix3<f64> {
-    m - Matrix3::identity() * (m.trace() / 3.0)
-}
 
 /// dσ = ∂σ/∂F : δF of every particle of the batch (see the module documentation).
 pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: TangentBatch<'_, D>) {
@@ -75,17 +61,8 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
         let fp_inv = Matrix3::from_row_slice(&inverse_f[9 * k..9 * k + 9]);
         let fe = f3 * fp_inv;
         let dfe = df3 * fp_inv;
-        let (stretch2, axes) = symmetric_eigen3(&(fe * fe.transpose()));
-        let b = stretch2.map(|l| l.max(1e-300));
-        let dbe_axes = axes.transpose() * (dfe * fe.transpose() + fe * dfe.transpose()) * axes;
-        let mut d_log = Matrix3::zeros();
-        for r in 0..3 {
-            for c in 0..3 {
-                d_log[(r, c)] = 0.5 * dbe_axes[(r, c)] * log_slope(b[r], b[c]);
-            }
-        }
-        let d_strain = axes * d_log * axes.transpose();
-        let log_strain = b.map(|l| 0.5 * l.ln());
+        let strain = log_strain_change(&fe, &dfe);
+        let (log_strain, axes, d_strain) = (strain.principal, strain.axes, strain.change);
         let volumetric = log_strain.sum() / 3.0;
         let deviatoric = log_strain.add_scalar(-volumetric);
         let e = axes * Matrix3::from_diagonal(&deviatoric) * axes.transpose();

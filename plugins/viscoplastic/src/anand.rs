@@ -9,12 +9,13 @@
 //! a microsecond of impact to a minute of a thermal cycle), with s(Δ) the exact solution of
 //! the hardening equation over the step at the step's rate Δ/dt. The return is radial in
 //! principal logarithmic strains (exact for an isotropic J2 flow); plastic flow is
-//! isochoric. In 2D (plane strain) the update runs in 3D with F_zz = 1.
+//! isochoric. In 2D (plane strain) the update runs in 3D with F_zz = 1. The implicit mode
+//! gets the update's exact derivative (`tangent.rs`).
 
 use crate::AnandParameters;
 use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, INELASTIC_WORK, SharedRead, StressBatch,
-    lame_parameters,
+    TangentBatch, lame_parameters,
 };
 use mpm_core::math::{determinant, inverse, symmetric_eigen3};
 use nalgebra::{Matrix3, Vector3};
@@ -179,6 +180,15 @@ impl ConstitutiveLaw for Anand {
 
     fn reports_plastic_work(&self) -> bool {
         true
+    }
+
+    fn has_stress_derivative(&self) -> bool {
+        true
+    }
+
+    /// The consistent tangent of this update (`tangent.rs`).
+    fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
+        crate::tangent::stress_derivative(self, batch);
     }
 
     fn cycles_to_crack(&self, work_per_cycle: f64) -> Option<f64> {

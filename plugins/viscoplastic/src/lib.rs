@@ -6,6 +6,7 @@
 mod anand;
 pub mod anand_reference;
 mod fatigue;
+mod tangent;
 
 pub use anand::Anand;
 pub use fatigue::FatigueLaw;

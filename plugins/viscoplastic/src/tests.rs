@@ -302,3 +302,84 @@ fn the_fatigue_law_gives_fewer_cycles_for_more_work() {
     assert!(law.cycles(0.2e6).unwrap() < n);
     assert_eq!(law.cycles(0.0), None);
 }
+
+/// The analytic tangent after driving a point through `history` (steps of `dt`), at `f`
+/// along `df`, against a central difference of the update from the same state; relative.
+fn tangent_error(
+    temperature: f64,
+    history: &[Matrix3<f64>],
+    f: Matrix3<f64>,
+    df: Matrix3<f64>,
+    dt: f64,
+) -> f64 {
+    use mpm_core::material::{StateView, TangentBatch};
+    let mut point = Point::new(sac305(), temperature);
+    for g in history {
+        point.step(*g, dt);
+    }
+    let start = point.state.clone();
+    let mut stress_at = |g: Matrix3<f64>| {
+        point.state = start.clone();
+        point.step(g, dt);
+        point.stress
+    };
+    let stress = stress_at(f);
+    let h = 1e-7;
+    let numeric = (stress_at(f + df * h) - stress_at(f - df * h)) / (2.0 * h);
+    let fields: [&[f64]; MAX_STATE_FIELDS] =
+        std::array::from_fn(|k| start.get(k).map_or(&[][..], |v| &v[..]));
+    let mut analytic = [Matrix::<3>::zeros()];
+    ConstitutiveLaw::stress_derivative::<3>(
+        &point.law,
+        TangentBatch {
+            dt,
+            deformation_gradient: &[f],
+            direction: &[df],
+            stress: &[stress],
+            state: StateView { fields },
+            shared: [&[temperature], &[], &[], &[]],
+            stress_change: &mut analytic,
+        },
+    );
+    (analytic[0] - numeric).norm() / numeric.norm()
+}
+
+#[test]
+fn consistent_tangent_matches_differences_of_the_update() {
+    // A shear-stretch path into creep, then a step further along it, one back towards the
+    // start, and a nearly elastic state; cold and hot, steps of a thermal cycle (60 s) and
+    // of an impact (1 µs).
+    let path = |s: f64| {
+        Matrix3::new(
+            1.0 + 0.1 * s,
+            0.6 * s,
+            0.0,
+            0.1 * s,
+            1.0,
+            0.2 * s,
+            0.0,
+            0.0,
+            1.0 - 0.05 * s,
+        )
+    };
+    let d = Matrix3::new(0.3, -0.2, 0.1, 0.05, 0.4, -0.1, 0.2, 0.1, -0.3);
+    let history: Vec<_> = (1..=10).map(|i| path(0.001 * i as f64)).collect();
+    let mut worst: f64 = 0.0;
+    for temperature in [233.15, 398.15] {
+        for dt in [60.0, 1e-6] {
+            for (name, f, past) in [
+                ("loading", path(0.011), &history[..]),
+                ("unloading", path(0.009), &history[..]),
+                ("nearly elastic", path(1e-5), &[][..]),
+            ] {
+                let error = tangent_error(temperature, past, f, d, dt);
+                worst = worst.max(error);
+                assert!(
+                    error < 1e-5,
+                    "{name}, T = {temperature} K, dt = {dt} s: {error:e}"
+                );
+            }
+        }
+    }
+    eprintln!("largest relative tangent error: {worst:.2e}");
+}

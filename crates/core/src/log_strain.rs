@@ -1,0 +1,70 @@
+//! The logarithmic (Hencky) strain ε = ½ ln(Fe Feᵀ) of an elastic deformation Fe and its
+//! derivative along a change δFe: what the consistent tangents of the finite-strain
+//! plasticity laws that return in principal logarithmic strains (Johnson–Cook, Anand)
+//! share. In the principal axes N of be = Fe Feᵀ, δε'ᵢⱼ = ½ (Nᵀ δbe N)ᵢⱼ (ln bᵢ − ln bⱼ) /
+//! (bᵢ − bⱼ) (1/bᵢ on the diagonal), with δbe = δFe Feᵀ + Fe δFeᵀ.
+
+use crate::math::symmetric_eigen3;
+use nalgebra::{Matrix3, Vector3};
+
+/// The logarithmic strain of an elastic deformation and its change.
+pub struct LogStrainChange {
+    /// Principal logarithmic strains ½ ln bᵢ.
+    pub principal: Vector3<f64>,
+    /// Principal axes (columns), the same as the update's.
+    pub axes: Matrix3<f64>,
+    /// δε, in the global frame.
+    pub change: Matrix3<f64>,
+}
+
+/// ε of `fe` and its change along `dfe` (see the module documentation).
+pub fn log_strain_change(fe: &Matrix3<f64>, dfe: &Matrix3<f64>) -> LogStrainChange {
+    let (stretch2, axes) = symmetric_eigen3(&(fe * fe.transpose()));
+    let b = stretch2.map(|l| l.max(1e-300));
+    let dbe_axes = axes.transpose() * (dfe * fe.transpose() + fe * dfe.transpose()) * axes;
+    let mut d_log = Matrix3::zeros();
+    for r in 0..3 {
+        for c in 0..3 {
+            d_log[(r, c)] = 0.5 * dbe_axes[(r, c)] * log_slope(b[r], b[c]);
+        }
+    }
+    LogStrainChange {
+        principal: b.map(|l| 0.5 * l.ln()),
+        axes,
+        change: axes * d_log * axes.transpose(),
+    }
+}
+
+/// (ln a − ln b)/(a − b), also where a and b (both positive) nearly coincide.
+fn log_slope(a: f64, b: f64) -> f64 {
+    let r = a / b - 1.0;
+    if r.abs() < 1e-8 {
+        (1.0 - 0.5 * r) / b
+    } else {
+        r.ln_1p() / (r * b)
+    }
+}
+
+/// The deviatoric part of a 3×3 tensor.
+pub fn deviator(m: &Matrix3<f64>) -> Matrix3<f64> {
+    m - Matrix3::identity() * (m.trace() / 3.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_change_is_the_difference_of_the_strain() {
+        let fe = Matrix3::new(1.1, 0.2, 0.0, 0.05, 0.95, 0.1, 0.0, -0.1, 1.02);
+        let dfe = Matrix3::new(0.3, -0.2, 0.1, 0.05, 0.4, -0.1, 0.2, 0.1, -0.3);
+        let strain = |f: Matrix3<f64>| {
+            let s = log_strain_change(&f, &Matrix3::zeros());
+            s.axes * Matrix3::from_diagonal(&s.principal) * s.axes.transpose()
+        };
+        let h = 1e-6;
+        let numeric = (strain(fe + dfe * h) - strain(fe - dfe * h)) / (2.0 * h);
+        let analytic = log_strain_change(&fe, &dfe).change;
+        assert!((analytic - numeric).norm() < 1e-7 * numeric.norm());
+    }
+}
