@@ -93,11 +93,21 @@ fn resumed_equals_uninterrupted(
     overrides: &[&str],
     every: u64,
 ) -> (tempfile::TempDir, PathBuf) {
+    let schedule = format!("output.checkpoint={{\"steps\":{every}}}");
+    let mut all = vec![schedule.as_str()];
+    all.extend_from_slice(overrides);
+    resumed_with_checkpoints_equals_uninterrupted(example_name, &all)
+}
+
+/// As [`resumed_equals_uninterrupted`], with the checkpoint schedule among `overrides` (a
+/// stage's own, say).
+fn resumed_with_checkpoints_equals_uninterrupted(
+    example_name: &str,
+    overrides: &[&str],
+) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let scene = example(example_name);
-    let schedule = format!("output.checkpoint={{\"steps\":{every}}}");
-    let mut args = vec!["run", scene.to_str().unwrap(), "--out", "a", "-q", "--set"];
-    args.push(&schedule);
+    let mut args = vec!["run", scene.to_str().unwrap(), "--out", "a", "-q"];
     for o in overrides {
         args.extend(["--set", o]);
     }
@@ -233,6 +243,25 @@ fn a_crack_onset_before_the_checkpoint_is_kept_by_the_resumed_run() {
     let onset = &metrics["stages"][2]["damage"]["underfill"]["onset"];
     assert!(onset["time"].as_f64().unwrap() > 3000.0, "{onset}");
     assert_eq!(checkpoint_of(&store).unwrap()["step"], 200);
+}
+
+#[test]
+fn a_creeping_solder_joint_and_its_fatigue_figures_resume_bit_for_bit() {
+    // The process example (the fill cannot be checkpointed, so the checkpoints start in
+    // `cycle-2`): the latest is in `cycle-3`; the bump's Anand state resumes, and so do
+    // the work each stage began from and the life it gives.
+    let (_dir, store) = resumed_with_checkpoints_equals_uninterrupted(
+        "underfill-process-2d.json",
+        &[r#"stages[4].changes.output.checkpoint={"steps":50}"#],
+    );
+    let pointer = checkpoint_of(&store).unwrap();
+    assert_eq!(pointer["step"], 500, "the latest checkpoint is in cycle-3");
+    let metrics = ResultStore::open(&store).unwrap().attributes()["metrics"].clone();
+    let solder = &metrics["stages"][5]["fatigue"]["solder"];
+    assert!(
+        solder["cycles_to_crack"].as_f64().unwrap() > 0.0,
+        "{solder}"
+    );
 }
 
 #[test]
