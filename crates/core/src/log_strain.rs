@@ -4,8 +4,40 @@
 //! share. In the principal axes N of be = Fe Feᵀ, δε'ᵢⱼ = ½ (Nᵀ δbe N)ᵢⱼ (ln bᵢ − ln bⱼ) /
 //! (bᵢ − bⱼ) (1/bᵢ on the diagonal), with δbe = δFe Feᵀ + Fe δFeᵀ.
 
-use crate::math::symmetric_eigen3;
+use crate::math::{determinant, inverse, symmetric_eigen3};
 use nalgebra::{Matrix3, Vector3};
+
+/// The elastic trial state of a return in logarithmic strain: Fe = F·Fp⁻¹ and its strain.
+pub struct ElasticTrial {
+    /// J = det F.
+    pub j: f64,
+    /// F⁻¹.
+    pub f_inv: Matrix3<f64>,
+    /// Fe = F·Fp⁻¹.
+    pub fe: Matrix3<f64>,
+    /// Principal axes of Fe·Feᵀ (columns).
+    pub axes: Matrix3<f64>,
+    /// Deviatoric principal logarithmic strains, along `axes`.
+    pub deviatoric: Vector3<f64>,
+}
+
+/// The trial state of 3×3 `f` with plastic part `fp_inv` (Fp⁻¹); `None` where det F ≤ 0
+/// (the solver stops such a run; a law leaves the stress as it was).
+pub fn elastic_trial(f: &Matrix3<f64>, fp_inv: &Matrix3<f64>) -> Option<ElasticTrial> {
+    let j = determinant::<3>(f);
+    let f_inv = inverse::<3>(f).filter(|_| j > 0.0)?;
+    let fe = f * fp_inv;
+    let (stretch2, axes) = symmetric_eigen3(&(fe * fe.transpose()));
+    let log_strain = stretch2.map(|l| 0.5 * l.max(1e-300).ln());
+    let volumetric = log_strain.sum() / 3.0;
+    Some(ElasticTrial {
+        j,
+        f_inv,
+        fe,
+        axes,
+        deviatoric: log_strain.add_scalar(-volumetric),
+    })
+}
 
 /// The logarithmic strain of an elastic deformation and its change.
 pub struct LogStrainChange {

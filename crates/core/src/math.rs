@@ -107,6 +107,19 @@ pub fn polar_rotation<const D: usize>(f: &Matrix<D>) -> Matrix<D> {
     }
 }
 
+/// The 3×3 form of a `D`×`D` matrix with `diagonal` on the rest of the diagonal: 1 for a
+/// plane-strain deformation gradient (F_zz = 1), 0 for its change, σ_zz for a stress.
+#[inline]
+pub fn embed3<const D: usize>(m: &Matrix<D>, diagonal: f64) -> Matrix<3> {
+    let mut out = Matrix::<3>::identity() * diagonal;
+    for r in 0..D {
+        for c in 0..D {
+            out[(r, c)] = m[(r, c)];
+        }
+    }
+    out
+}
+
 /// Trace of a square matrix.
 #[inline(always)]
 pub fn trace<const D: usize>(m: &Matrix<D>) -> f64 {

@@ -12,13 +12,14 @@
 
 use crate::JohnsonCookParameters;
 use crate::damage::FailureMode;
+use mpm_core::log_strain::{ElasticTrial, elastic_trial};
 use mpm_core::material::{
     AveragedState, BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch,
     TangentBatch, lame_parameters,
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;
-use mpm_core::math::{determinant, inverse, symmetric_eigen3};
+use mpm_core::math::embed3;
 use nalgebra::{Matrix3, Vector3};
 
 const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
@@ -180,24 +181,19 @@ impl ConstitutiveLaw for JohnsonCook {
             .zip(batch.volume0)
             .enumerate()
         {
-            let mut f3 = Matrix3::identity();
-            for r in 0..D {
-                for c in 0..D {
-                    f3[(r, c)] = f[(r, c)];
-                }
-            }
-            let j = determinant::<3>(&f3);
-            let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
+            let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
+            let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
+            let Some(ElasticTrial {
+                j,
+                f_inv,
+                fe,
+                axes,
+                deviatoric,
+            }) = elastic_trial(&embed3(f, 1.0), &fp_inv)
+            else {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
-            let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
-            let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
-            let fe = f3 * fp_inv;
-            let (stretch2, axes) = symmetric_eigen3(&(fe * fe.transpose()));
-            let log_strain = stretch2.map(|l| 0.5 * l.max(1e-300).ln());
-            let volumetric = log_strain.sum() / 3.0;
-            let deviatoric = log_strain.add_scalar(-volumetric);
             let trial = deviatoric * (2.0 * mu);
             let q_trial = (1.5 * trial.norm_squared()).sqrt();
 
@@ -302,11 +298,5 @@ impl ConstitutiveLaw for JohnsonCook {
 /// 3×3 view of a `D`×`D` matrix (used by tests).
 #[cfg(test)]
 pub(crate) fn embed<const D: usize>(m: &Matrix<D>) -> Matrix3<f64> {
-    let mut out = Matrix3::identity();
-    for r in 0..D {
-        for c in 0..D {
-            out[(r, c)] = m[(r, c)];
-        }
-    }
-    out
+    embed3(m, 1.0)
 }

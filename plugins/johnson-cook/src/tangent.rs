@@ -18,7 +18,7 @@ use crate::damage::FailureMode;
 use crate::johnson_cook::JohnsonCook;
 use mpm_core::log_strain::{deviator, log_strain_change};
 use mpm_core::material::TangentBatch;
-use mpm_core::math::{determinant, inverse};
+use mpm_core::math::{determinant, embed3, inverse};
 use nalgebra::Matrix3;
 
 /// dσ = ∂σ/∂F : δF of every particle of the batch (see the module documentation).
@@ -33,15 +33,6 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
     let conducted = !shared_temperature.is_empty();
     let failure = p.damage.map(|d| d.failure).unwrap_or_default();
     let averaged = p.damage.and_then(|d| d.averaging_radius);
-    let embed = |m: &mpm_core::math::Matrix<D>, diagonal: f64| {
-        let mut out = Matrix3::identity() * diagonal;
-        for r in 0..D {
-            for c in 0..D {
-                out[(r, c)] = m[(r, c)];
-            }
-        }
-        out
-    };
     for (k, ((f, df), out)) in batch
         .deformation_gradient
         .iter()
@@ -51,8 +42,8 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
     {
         out.fill(0.0);
         // In 2D the out-of-plane stretch stays 1: δF_zz = 0.
-        let f3 = embed(f, 1.0);
-        let df3 = embed(df, 0.0);
+        let f3 = embed3(f, 1.0);
+        let df3 = embed3(df, 0.0);
         let j = determinant::<3>(&f3);
         let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
             continue;

@@ -220,16 +220,7 @@ impl SolidPlasticity {
 
 /// The 3×3 solid stress of a D×D one and its out-of-plane slot (2D: σ_zz; 3D: unused).
 pub(crate) fn embed<const D: usize>(s: &Matrix<D>, zz: f64) -> Matrix<3> {
-    let mut out = Matrix::<3>::zeros();
-    for r in 0..D {
-        for c in 0..D {
-            out[(r, c)] = s[(r, c)];
-        }
-    }
-    if D == 2 {
-        out[(2, 2)] = zz;
-    }
-    out
+    mpm_core::math::embed3(s, zz)
 }
 
 /// The D×D part of a 3×3 stress, and its σ_zz (for a 2D law's state).

@@ -13,11 +13,12 @@
 //! gets the update's exact derivative (`tangent.rs`).
 
 use crate::AnandParameters;
+use mpm_core::log_strain::{ElasticTrial, elastic_trial};
 use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, INELASTIC_WORK, SharedRead, StressBatch,
     TangentBatch, lame_parameters,
 };
-use mpm_core::math::{determinant, inverse, symmetric_eigen3};
+use mpm_core::math::embed3;
 use nalgebra::{Matrix3, Vector3};
 
 const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
@@ -209,23 +210,19 @@ impl ConstitutiveLaw for Anand {
             .zip(batch.volume0)
             .enumerate()
         {
-            let mut f3 = Matrix3::identity();
-            for r in 0..D {
-                for c in 0..D {
-                    f3[(r, c)] = f[(r, c)];
-                }
-            }
-            let j = determinant::<3>(&f3);
-            let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
+            let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
+            let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
+            let Some(ElasticTrial {
+                j,
+                f_inv,
+                fe,
+                axes,
+                deviatoric,
+            }) = elastic_trial(&embed3(f, 1.0), &fp_inv)
+            else {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
-            let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
-            let fe = f3 * Matrix3::from_row_slice(fp_inv_slot);
-            let (stretch2, axes) = symmetric_eigen3(&(fe * fe.transpose()));
-            let log_strain = stretch2.map(|l| 0.5 * l.max(1e-300).ln());
-            let volumetric = log_strain.sum() / 3.0;
-            let deviatoric = log_strain.add_scalar(-volumetric);
             let q_trial = (1.5 * (deviatoric * (2.0 * mu)).norm_squared()).sqrt();
 
             let rate_scale = match shared_temperature.get(k) {

@@ -14,7 +14,7 @@
 use crate::anand::Anand;
 use mpm_core::log_strain::{deviator, log_strain_change};
 use mpm_core::material::TangentBatch;
-use mpm_core::math::{determinant, inverse};
+use mpm_core::math::{determinant, embed3, inverse};
 use nalgebra::Matrix3;
 
 /// dσ = ∂σ/∂F : δF of every particle of the batch (see the module documentation).
@@ -24,15 +24,6 @@ pub(crate) fn stress_derivative<const D: usize>(law: &Anand, batch: TangentBatch
     let [_, resistance_f, _, _, inverse_f, ..] = batch.state.fields;
     let shared_temperature = batch.shared[0];
     let fixed_scale = law.rate_scale(p.temperature);
-    let embed = |m: &mpm_core::math::Matrix<D>, diagonal: f64| {
-        let mut out = Matrix3::identity() * diagonal;
-        for r in 0..D {
-            for c in 0..D {
-                out[(r, c)] = m[(r, c)];
-            }
-        }
-        out
-    };
     for (k, ((f, df), out)) in batch
         .deformation_gradient
         .iter()
@@ -42,8 +33,8 @@ pub(crate) fn stress_derivative<const D: usize>(law: &Anand, batch: TangentBatch
     {
         out.fill(0.0);
         // In 2D the out-of-plane stretch stays 1: δF_zz = 0.
-        let f3 = embed(f, 1.0);
-        let df3 = embed(df, 0.0);
+        let f3 = embed3(f, 1.0);
+        let df3 = embed3(df, 0.0);
         let j = determinant::<3>(&f3);
         let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
             continue;
