@@ -21,6 +21,65 @@ pub struct ElasticTrial {
     pub deviatoric: Vector3<f64>,
 }
 
+impl ElasticTrial {
+    /// The trial von Mises (Kirchhoff) stress √(3/2)·|2μ·dev ε| at shear modulus `shear`.
+    pub fn equivalent_stress(&self, shear: f64) -> f64 {
+        (1.5 * (self.deviatoric * (2.0 * shear)).norm_squared()).sqrt()
+    }
+
+    /// Fp⁻¹ after a return to the deviatoric principal strains `returned` along the same
+    /// axes: Fe ← A·Fe with A = exp(ε_returned − ε_trial), then Fp⁻¹ = F⁻¹·Fe.
+    pub fn plastic_inverse_after(&self, returned: &Vector3<f64>) -> Matrix3<f64> {
+        let change = (returned - self.deviatoric).map(f64::exp);
+        let a = self.axes * Matrix3::from_diagonal(&change) * self.axes.transpose();
+        self.f_inv * a * self.fe
+    }
+}
+
+/// The elastic trial state of a return in logarithmic strain and its change along δF: what
+/// a consistent tangent differentiates.
+pub struct ElasticTrialChange {
+    /// J = det F.
+    pub j: f64,
+    /// δJ.
+    pub dj: f64,
+    /// Deviatoric principal logarithmic strains.
+    pub deviatoric: Vector3<f64>,
+    /// The deviatoric trial strain e = dev ε, in the global frame.
+    pub strain: Matrix3<f64>,
+    /// δε, in the global frame.
+    pub change: Matrix3<f64>,
+}
+
+impl ElasticTrialChange {
+    /// The trial von Mises (Kirchhoff) stress, as [`ElasticTrial::equivalent_stress`].
+    pub fn equivalent_stress(&self, shear: f64) -> f64 {
+        (1.5 * (self.deviatoric * (2.0 * shear)).norm_squared()).sqrt()
+    }
+}
+
+/// The trial state of 3×3 `f` with plastic part `fp_inv` and its change along `df` (δF);
+/// `None` where det F ≤ 0.
+pub fn elastic_trial_change(
+    f: &Matrix3<f64>,
+    df: &Matrix3<f64>,
+    fp_inv: &Matrix3<f64>,
+) -> Option<ElasticTrialChange> {
+    let j = determinant::<3>(f);
+    let f_inv = inverse::<3>(f).filter(|_| j > 0.0)?;
+    let strain = log_strain_change(&(f * fp_inv), &(df * fp_inv));
+    let volumetric = strain.principal.sum() / 3.0;
+    let deviatoric = strain.principal.add_scalar(-volumetric);
+    let axes = strain.axes;
+    Some(ElasticTrialChange {
+        j,
+        dj: j * (f_inv * df).trace(),
+        deviatoric,
+        strain: axes * Matrix3::from_diagonal(&deviatoric) * axes.transpose(),
+        change: strain.change,
+    })
+}
+
 /// The trial state of 3×3 `f` with plastic part `fp_inv` (Fp⁻¹); `None` where det F ≤ 0
 /// (the solver stops such a run; a law leaves the stress as it was).
 pub fn elastic_trial(f: &Matrix3<f64>, fp_inv: &Matrix3<f64>) -> Option<ElasticTrial> {

@@ -120,6 +120,18 @@ pub fn embed3<const D: usize>(m: &Matrix<D>, diagonal: f64) -> Matrix<3> {
     out
 }
 
+/// The `D`×`D` top-left part of a 3×3 matrix (the inverse of [`embed3`]).
+#[inline]
+pub fn top_left<const D: usize>(m: &Matrix<3>) -> Matrix<D> {
+    let mut out = Matrix::<D>::zeros();
+    for r in 0..D {
+        for c in 0..D {
+            out[(r, c)] = m[(r, c)];
+        }
+    }
+    out
+}
+
 /// Trace of a square matrix.
 #[inline(always)]
 pub fn trace<const D: usize>(m: &Matrix<D>) -> f64 {

@@ -19,7 +19,7 @@ use mpm_core::material::{
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;
-use mpm_core::math::embed3;
+use mpm_core::math::{embed3, top_left};
 use nalgebra::{Matrix3, Vector3};
 
 const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
@@ -183,17 +183,16 @@ impl ConstitutiveLaw for JohnsonCook {
         {
             let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
             let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
-            let Some(ElasticTrial {
-                j,
-                f_inv,
-                fe,
-                axes,
-                deviatoric,
-            }) = elastic_trial(&embed3(f, 1.0), &fp_inv)
-            else {
+            let Some(elastic) = elastic_trial(&embed3(f, 1.0), &fp_inv) else {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
+            let ElasticTrial {
+                j,
+                axes,
+                deviatoric,
+                ..
+            } = elastic;
             let trial = deviatoric * (2.0 * mu);
             let q_trial = (1.5 * trial.norm_squared()).sqrt();
 
@@ -249,25 +248,13 @@ impl ConstitutiveLaw for JohnsonCook {
 
             // Cauchy stress σ = τ/J, principal directions from the trial elastic strain.
             let principal = deviatoric_stress.map(|s| s / j - pressure);
-            let sigma = axes * Matrix3::from_diagonal(&principal) * axes.transpose();
-            for r in 0..D {
-                for c in 0..D {
-                    stress[(r, c)] = sigma[(r, c)];
-                }
-            }
+            *stress = top_left(&(axes * Matrix3::from_diagonal(&principal) * axes.transpose()));
 
-            // Return the elastic stretch along the same axes: Fe ← A·Fe with
-            // A = exp(ε_new − ε_trial), then Fp⁻¹ = F⁻¹ Fe.
+            // Return the elastic stretch along the same axes (Fp⁻¹ row-major in its slot).
             let new_deviatoric = deviatoric_stress / (2.0 * mu);
             if scale != 1.0 {
-                let change = (new_deviatoric - deviatoric).map(f64::exp);
-                let a = axes * Matrix3::from_diagonal(&change) * axes.transpose();
-                let fp_inv_new = f_inv * a * fe;
-                for r in 0..3 {
-                    for c in 0..3 {
-                        fp_inv_slot[3 * r + c] = fp_inv_new[(r, c)];
-                    }
-                }
+                let fp_inv_new = elastic.plastic_inverse_after(&new_deviatoric);
+                fp_inv_slot.copy_from_slice(fp_inv_new.transpose().as_slice());
             }
             let ln_j = j.ln();
             if damage_f[k] >= 1.0 {

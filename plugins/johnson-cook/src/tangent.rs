@@ -16,9 +16,9 @@
 
 use crate::damage::FailureMode;
 use crate::johnson_cook::JohnsonCook;
-use mpm_core::log_strain::{deviator, log_strain_change};
+use mpm_core::log_strain::{deviator, elastic_trial_change};
 use mpm_core::material::TangentBatch;
-use mpm_core::math::{determinant, embed3, inverse};
+use mpm_core::math::{embed3, top_left};
 use nalgebra::Matrix3;
 
 /// dσ = ∂σ/∂F : δF of every particle of the batch (see the module documentation).
@@ -42,22 +42,12 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
     {
         out.fill(0.0);
         // In 2D the out-of-plane stretch stays 1: δF_zz = 0.
-        let f3 = embed3(f, 1.0);
-        let df3 = embed3(df, 0.0);
-        let j = determinant::<3>(&f3);
-        let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
+        let fp_inv = Matrix3::from_row_slice(&inverse_f[9 * k..9 * k + 9]);
+        let Some(trial) = elastic_trial_change(&embed3(f, 1.0), &embed3(df, 0.0), &fp_inv) else {
             continue;
         };
-        let dj = j * (f_inv * df3).trace();
-        let fp_inv = Matrix3::from_row_slice(&inverse_f[9 * k..9 * k + 9]);
-        let fe = f3 * fp_inv;
-        let dfe = df3 * fp_inv;
-        let strain = log_strain_change(&fe, &dfe);
-        let (log_strain, axes, d_strain) = (strain.principal, strain.axes, strain.change);
-        let volumetric = log_strain.sum() / 3.0;
-        let deviatoric = log_strain.add_scalar(-volumetric);
-        let e = axes * Matrix3::from_diagonal(&deviatoric) * axes.transpose();
-        let q_trial = (1.5 * (deviatoric * (2.0 * mu)).norm_squared()).sqrt();
+        let (j, dj, e, d_strain) = (trial.j, trial.dj, trial.strain, trial.change);
+        let q_trial = trial.equivalent_stress(mu);
 
         let temperature = if conducted {
             shared_temperature[k]
@@ -124,10 +114,6 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
             d_tau / j - tau * (dj / (j * j))
         };
         let d_sigma = d_deviatoric - Matrix3::identity() * d_pressure;
-        for r in 0..D {
-            for c in 0..D {
-                out[(r, c)] = d_sigma[(r, c)];
-            }
-        }
+        *out = top_left(&d_sigma);
     }
 }

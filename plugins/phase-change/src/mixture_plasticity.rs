@@ -225,13 +225,7 @@ pub(crate) fn embed<const D: usize>(s: &Matrix<D>, zz: f64) -> Matrix<3> {
 
 /// The D×D part of a 3×3 stress, and its σ_zz (for a 2D law's state).
 pub(crate) fn project<const D: usize>(s: &Matrix<3>) -> (Matrix<D>, f64) {
-    let mut out = Matrix::<D>::zeros();
-    for r in 0..D {
-        for c in 0..D {
-            out[(r, c)] = s[(r, c)];
-        }
-    }
-    (out, s[(2, 2)])
+    (mpm_core::math::top_left(s), s[(2, 2)])
 }
 
 #[cfg(test)]

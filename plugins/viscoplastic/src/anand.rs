@@ -18,8 +18,8 @@ use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, INELASTIC_WORK, SharedRead, StressBatch,
     TangentBatch, lame_parameters,
 };
-use mpm_core::math::embed3;
-use nalgebra::{Matrix3, Vector3};
+use mpm_core::math::{embed3, top_left};
+use nalgebra::Matrix3;
 
 const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
 
@@ -212,18 +212,17 @@ impl ConstitutiveLaw for Anand {
         {
             let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
             let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
-            let Some(ElasticTrial {
-                j,
-                f_inv,
-                fe,
-                axes,
-                deviatoric,
-            }) = elastic_trial(&embed3(f, 1.0), &fp_inv)
-            else {
+            let Some(trial) = elastic_trial(&embed3(f, 1.0), &fp_inv) else {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
-            let q_trial = (1.5 * (deviatoric * (2.0 * mu)).norm_squared()).sqrt();
+            let ElasticTrial {
+                j,
+                axes,
+                deviatoric,
+                ..
+            } = trial;
+            let q_trial = trial.equivalent_stress(mu);
 
             let rate_scale = match shared_temperature.get(k) {
                 Some(&t) => self.rate_scale(t),
@@ -251,22 +250,11 @@ impl ConstitutiveLaw for Anand {
             let new_deviatoric = deviatoric * scale;
             let ln_j = j.ln();
             let principal = new_deviatoric.map(|e| (2.0 * mu * e + bulk * ln_j) / j);
-            let sigma = axes * Matrix3::from_diagonal(&principal) * axes.transpose();
-            for r in 0..D {
-                for c in 0..D {
-                    stress[(r, c)] = sigma[(r, c)];
-                }
-            }
-            // Fe ← A·Fe with A = exp(ε_new − ε_trial) along the same axes; Fp⁻¹ = F⁻¹ Fe.
+            *stress = top_left(&(axes * Matrix3::from_diagonal(&principal) * axes.transpose()));
             if scale != 1.0 {
-                let change: Vector3<f64> = (new_deviatoric - deviatoric).map(f64::exp);
-                let a = axes * Matrix3::from_diagonal(&change) * axes.transpose();
-                let fp_inv_new = f_inv * a * fe;
-                for r in 0..3 {
-                    for c in 0..3 {
-                        fp_inv_slot[3 * r + c] = fp_inv_new[(r, c)];
-                    }
-                }
+                // Row-major, as the slot keeps it.
+                let fp_inv_new = trial.plastic_inverse_after(&new_deviatoric);
+                fp_inv_slot.copy_from_slice(fp_inv_new.transpose().as_slice());
             }
             min_j = min_j.min(j);
             energy += v0 * (mu * new_deviatoric.norm_squared() + 0.5 * bulk * ln_j * ln_j);

@@ -12,9 +12,9 @@
 //! resistance update, a scalar function.
 
 use crate::anand::Anand;
-use mpm_core::log_strain::{deviator, log_strain_change};
+use mpm_core::log_strain::{deviator, elastic_trial_change};
 use mpm_core::material::TangentBatch;
-use mpm_core::math::{determinant, embed3, inverse};
+use mpm_core::math::{embed3, top_left};
 use nalgebra::Matrix3;
 
 /// dσ = ∂σ/∂F : δF of every particle of the batch (see the module documentation).
@@ -33,20 +33,12 @@ pub(crate) fn stress_derivative<const D: usize>(law: &Anand, batch: TangentBatch
     {
         out.fill(0.0);
         // In 2D the out-of-plane stretch stays 1: δF_zz = 0.
-        let f3 = embed3(f, 1.0);
-        let df3 = embed3(df, 0.0);
-        let j = determinant::<3>(&f3);
-        let Some(f_inv) = inverse::<3>(&f3).filter(|_| j > 0.0) else {
+        let fp_inv = Matrix3::from_row_slice(&inverse_f[9 * k..9 * k + 9]);
+        let Some(trial) = elastic_trial_change(&embed3(f, 1.0), &embed3(df, 0.0), &fp_inv) else {
             continue;
         };
-        let dj = j * (f_inv * df3).trace();
-        let fp_inv = Matrix3::from_row_slice(&inverse_f[9 * k..9 * k + 9]);
-        let strain = log_strain_change(&(f3 * fp_inv), &(df3 * fp_inv));
-        let volumetric = strain.principal.sum() / 3.0;
-        let deviatoric = strain.principal.add_scalar(-volumetric);
-        let axes = strain.axes;
-        let e = axes * Matrix3::from_diagonal(&deviatoric) * axes.transpose();
-        let q_trial = (1.5 * (deviatoric * (2.0 * mu)).norm_squared()).sqrt();
+        let (j, dj, e, d_strain) = (trial.j, trial.dj, trial.strain, trial.change);
+        let q_trial = trial.equivalent_stress(mu);
 
         let rate_scale = match shared_temperature.get(k) {
             Some(&t) => law.rate_scale(t),
@@ -67,7 +59,7 @@ pub(crate) fn stress_derivative<const D: usize>(law: &Anand, batch: TangentBatch
                 let x = p.stress_multiplier * q / s;
                 let k_flow = p.stress_multiplier / (p.rate_sensitivity * s * x.tanh());
                 let slope = q * ds / s + 1.0 / (k_flow * increment);
-                let d_q_trial = 6.0 * mu * mu * e.dot(&strain.change) / q_trial;
+                let d_q_trial = 6.0 * mu * mu * e.dot(&d_strain) / q_trial;
                 let d_increment = d_q_trial / (3.0 * mu + slope);
                 d_scale = -3.0 * mu * (d_increment * q_trial - increment * d_q_trial)
                     / (q_trial * q_trial);
@@ -75,13 +67,9 @@ pub(crate) fn stress_derivative<const D: usize>(law: &Anand, batch: TangentBatch
         }
         // σ = τ/J with τ = 2μ·r·e + K ln J I.
         let tau = e * (2.0 * mu * scale) + Matrix3::identity() * (bulk * j.ln());
-        let d_tau = (e * d_scale + deviator(&strain.change) * scale) * (2.0 * mu)
+        let d_tau = (e * d_scale + deviator(&d_strain) * scale) * (2.0 * mu)
             + Matrix3::identity() * (bulk * dj / j);
         let d_sigma = d_tau / j - tau * (dj / (j * j));
-        for r in 0..D {
-            for c in 0..D {
-                out[(r, c)] = d_sigma[(r, c)];
-            }
-        }
+        *out = top_left(&d_sigma);
     }
 }
