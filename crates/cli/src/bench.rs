@@ -54,6 +54,13 @@ pub struct BenchArgs {
     /// is written).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Run a peer implementation of the cube drop beside mpm's own, on the same machine and
+    /// thread count, and print the ratio: `taichi` (crates/cli/src/bench_peer_taichi.py).
+    #[arg(long, value_name = "PEER")]
+    pub peer: Option<String>,
+    /// The Python that runs the peer (`--peer taichi` needs the `taichi` package in it).
+    #[arg(long, value_name = "PATH", default_value = "python3")]
+    pub python: PathBuf,
 }
 
 /// One measured case.
@@ -204,17 +211,29 @@ pub fn run_case(
     registry: &Registry,
     out: Option<&Path>,
 ) -> anyhow::Result<BenchCase> {
-    let validated = parse_scene_value(scene(name, n, steps), registry, Path::new("."))
-        .map_err(|e| input_error!("bench scene {name} at {n}³ cells: {e}"))?;
     let mut null = NullSink;
     let mut zarr;
     let sink: &mut dyn OutputSink = match out {
         Some(dir) => {
-            zarr = mpm_io::ZarrSink::new(dir.join(format!("{}.zarr", validated.scene.name)));
+            zarr = mpm_io::ZarrSink::new(dir.join(format!("bench-{name}-{n}.zarr")));
             &mut zarr
         }
         None => &mut null,
     };
+    run_scene_case(scene(name, n, steps), name, n, steps, registry, sink)
+}
+
+/// Runs one case of the scene document `doc` (a [`scene`], possibly changed) into `sink`.
+pub(crate) fn run_scene_case(
+    doc: Value,
+    name: &str,
+    n: usize,
+    steps: u64,
+    registry: &Registry,
+    sink: &mut dyn OutputSink,
+) -> anyhow::Result<BenchCase> {
+    let validated = parse_scene_value(doc, registry, Path::new("."))
+        .map_err(|e| input_error!("bench scene {name} at {n}³ cells: {e}"))?;
     let mut stop_at = |p: &Progress| {
         if p.step >= steps {
             Control::Cancel
@@ -279,7 +298,7 @@ pub fn table(cases: &[BenchCase]) -> String {
 }
 
 /// Today's date (UTC) as `YYYY-MM-DD`, from the system clock.
-fn today() -> String {
+pub(crate) fn today() -> String {
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
@@ -297,7 +316,7 @@ fn today() -> String {
 }
 
 /// The commit: `MPM_COMMIT` from the environment, else `git rev-parse` here, else none.
-fn commit() -> Option<String> {
+pub(crate) fn commit() -> Option<String> {
     if let Ok(c) = std::env::var("MPM_COMMIT") {
         return Some(c);
     }
@@ -319,6 +338,9 @@ pub fn run(args: BenchArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
             "--steps {}: give a number of steps from 1 to 1000000",
             args.steps
         ));
+    }
+    if let Some(peer) = &args.peer {
+        return crate::bench_peer::run(&args, peer, &sizes, &scenes, registry);
     }
     let mut cases = Vec::new();
     for name in &scenes {

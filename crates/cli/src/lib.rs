@@ -2,6 +2,7 @@
 //! plugin author builds their own `mpm` with one more line (see the plugin template).
 
 pub mod bench;
+pub mod bench_peer;
 mod client;
 mod commands;
 mod exit_status;

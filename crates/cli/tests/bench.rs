@@ -55,6 +55,12 @@ fn bad_arguments_exit_2_naming_the_argument() {
         (&["bench", "--size", "32,x"][..], "--size"),
         (&["bench", "--scene", "nope"][..], "--scene"),
         (&["bench", "--steps", "0"][..], "--steps"),
+        (&["bench", "--peer", "nope"][..], "--peer"),
+        (
+            &["bench", "--peer", "taichi", "--scene", "impact"][..],
+            "--peer",
+        ),
+        (&["bench", "--peer", "taichi", "--out", "x"][..], "--out"),
     ] {
         let out = mpm(args);
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -62,4 +68,26 @@ fn bad_arguments_exit_2_naming_the_argument() {
         assert!(stderr.contains(named), "{args:?}: {stderr}");
         assert!(out.stdout.is_empty(), "{args:?}");
     }
+}
+
+/// A Python that cannot be started is an operational failure (1) naming it; the Taichi
+/// comparison itself is tested in tests/python/test_bench_peer.py, in the venv that has
+/// the `taichi` package.
+#[test]
+fn a_peer_python_that_does_not_start_exits_1_naming_it() {
+    let out = mpm(&[
+        "bench",
+        "--peer",
+        "taichi",
+        "--size",
+        "16",
+        "--steps",
+        "2",
+        "--python",
+        "/nonexistent/python",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("/nonexistent/python"), "{stderr}");
+    assert!(out.stdout.is_empty());
 }

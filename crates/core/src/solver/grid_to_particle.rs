@@ -2,6 +2,7 @@
 //! and update the deformation gradient from the velocity gradient.
 
 use super::parallel::{SharedSlice, chunk_count, chunk_range, ordered_reduce};
+use super::separable::gather;
 use super::stats::{KinematicStats, ParticleFault};
 use super::stencil::{Stencil, stencil_fits};
 use crate::grid::Grid;
@@ -81,29 +82,36 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 } else {
                     &fields[contact_field[p] as usize]
                 };
+                let need_b = apic && (params.velocity || params.gradient_from_affine);
+                let need_grad = params.deformation && !params.gradient_from_affine;
                 let mut v_pic = Vector::<D>::zeros();
                 let mut v_flip_change = Vector::<D>::zeros();
                 let mut b = Matrix::<D>::zeros();
                 let mut inertia = Matrix::<D>::zeros();
                 let mut grad = Matrix::<D>::zeros();
-                let need_b = apic && (params.velocity || params.gradient_from_affine);
-                let need_grad = params.deformation && !params.gradient_from_affine;
-                stencil.for_each::<K>(&grid.stride, |i, w, dw, dpos| {
-                    let vi = source.momentum[i];
-                    v_pic += vi * w;
-                    if need_b {
-                        b += (vi * w) * dpos.transpose();
-                        if K::APIC_INERTIA.is_none() {
-                            inertia += (dpos * w) * dpos.transpose();
+                if !flip && (K::APIC_INERTIA.is_some() || !need_b) {
+                    // The tensor-product gather (constant APIC inertia, no FLIP change).
+                    let g =
+                        gather::<D, K>(&stencil, &grid.stride, &source.momentum, need_b, need_grad);
+                    (v_pic, b, grad) = (g.velocity, g.affine, g.gradient);
+                } else {
+                    stencil.for_each::<K>(&grid.stride, |i, w, dw, dpos| {
+                        let vi = source.momentum[i];
+                        v_pic += vi * w;
+                        if need_b {
+                            b += (vi * w) * dpos.transpose();
+                            if K::APIC_INERTIA.is_none() {
+                                inertia += (dpos * w) * dpos.transpose();
+                            }
                         }
-                    }
-                    if need_grad {
-                        grad += vi * dw.transpose();
-                    }
-                    if flip && params.velocity {
-                        v_flip_change += (vi - source.velocity_old[i]) * w;
-                    }
-                });
+                        if need_grad {
+                            grad += vi * dw.transpose();
+                        }
+                        if flip && params.velocity {
+                            v_flip_change += (vi - source.velocity_old[i]) * w;
+                        }
+                    });
+                }
                 // Affine matrix C = B·D⁻¹ (offsets in cells, so divide by dx once).
                 let c = if need_b {
                     match K::APIC_INERTIA {

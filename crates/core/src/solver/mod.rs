@@ -35,6 +35,7 @@ mod parallel;
 mod particle_to_grid;
 mod quasi_static;
 mod run_loop;
+mod separable;
 mod setup;
 mod simulation;
 mod stages;

@@ -7,6 +7,7 @@
 
 use super::binning::SlabBins;
 use super::parallel::SharedSlice;
+use super::separable::{Scatter, scatter};
 use super::stencil::Stencil;
 use crate::grid::Grid;
 use crate::kernels::Kernel;
@@ -104,28 +105,36 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
                                 * (params.dt * volume / (params.inertia * dx * dx) * dx);
                         }
                     }
-                    let fold = if params.force_apart { 0.0 } else { params.dt };
-                    stencil.for_each::<K>(&stride, |i, w, grad, dpos| {
+                    if !params.force_apart {
+                        // Forces folded into the momentum: the tensor-product scatter.
+                        let what = Scatter {
+                            mass: params.mass.then_some(m),
+                            mv,
+                            q,
+                            s: (params.force == ForceTerm::Standard).then(|| s * params.dt),
+                        };
                         // SAFETY: the slab colouring gives this task exclusive access to
-                        // every node its particles touch (module docs); `i` is on the grid
-                        // because positions are checked against the grid after every move.
+                        // every node its particles touch (module docs); the stencil is on
+                        // the grid because positions are checked against it after every move.
+                        unsafe {
+                            scatter::<D, K>(&stencil, &stride, &what, mass_out, momentum_out);
+                        }
+                        continue;
+                    }
+                    // FLIP: forces kept apart in `grid.force`.
+                    stencil.for_each::<K>(&stride, |i, w, grad, dpos| {
+                        // SAFETY: as above.
                         unsafe {
                             if params.mass {
                                 *mass_out.get(i) += w * m;
                             }
-                            let mut add = (mv + q * dpos) * w;
-                            if params.force_apart && params.force != ForceTerm::None {
+                            if params.force != ForceTerm::None {
                                 *force_out.get(i) += weight * w;
                             }
                             if params.force == ForceTerm::Standard {
-                                let f = s * grad;
-                                if params.force_apart {
-                                    *force_out.get(i) += f;
-                                } else {
-                                    add += f * fold;
-                                }
+                                *force_out.get(i) += s * grad;
                             }
-                            *momentum_out.get(i) += add;
+                            *momentum_out.get(i) += (mv + q * dpos) * w;
                         }
                     });
                 }
