@@ -82,6 +82,9 @@ pub struct BenchCase {
     pub bytes_per_particle: f64,
     /// Bytes of the grid.
     pub grid_bytes: usize,
+    /// Wall seconds per stage of the step (`p2g`, `g2p`, `stress`, ...; the run's
+    /// `metrics.stage_seconds`).
+    pub stage_seconds: std::collections::BTreeMap<String, f64>,
     /// `finished` (ran its steps) or `stopped` (on a check; see `note`).
     pub outcome: String,
     /// The diagnostic of a stopped case.
@@ -260,6 +263,7 @@ pub(crate) fn run_scene_case(
         particle_steps_per_second: m.particle_steps_per_second,
         bytes_per_particle: m.bytes_per_particle,
         grid_bytes: m.grid_bytes,
+        stage_seconds: m.stage_seconds,
         outcome: if stopped { "stopped" } else { "finished" }.into(),
         note: m.diagnostic.map(|d| {
             format!(
@@ -293,6 +297,42 @@ pub fn table(cases: &[BenchCase]) -> String {
             c.bytes_per_particle,
             c.grid_bytes as f64 / 1e6
         );
+    }
+    s
+}
+
+/// Stages of the breakdown table, in step order; the rest of the loop's time is `other`
+/// (output, checks, the time step).
+const BREAKDOWN: [&str; 8] = [
+    "sort",
+    "bin",
+    "p2g",
+    "grid_update",
+    "g2p",
+    "volume_average",
+    "physics",
+    "stress",
+];
+
+/// Where each case's loop time went, in percent per stage (Markdown).
+pub fn breakdown(cases: &[BenchCase]) -> String {
+    let shown: Vec<&str> = BREAKDOWN
+        .into_iter()
+        .filter(|s| cases.iter().any(|c| c.stage_seconds.contains_key(*s)))
+        .collect();
+    let mut s = format!("| scene | cells | {} | other |\n", shown.join(" | "));
+    s += &format!("|---|---|{}---|\n", "---|".repeat(shown.len()));
+    for c in cases {
+        let share = |t: f64| 100.0 * t / c.wall_seconds.max(f64::MIN_POSITIVE);
+        let mut row = format!("| {} | {}³ |", c.scene, c.cells);
+        let mut timed = 0.0;
+        for stage in &shown {
+            let t = c.stage_seconds.get(*stage).copied().unwrap_or(0.0);
+            timed += t;
+            row += &format!(" {:.1}% |", share(t));
+        }
+        row += &format!(" {:.1}% |\n", share((c.wall_seconds - timed).max(0.0)));
+        s += &row;
     }
     s
 }
@@ -374,6 +414,8 @@ pub fn run(args: BenchArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
         outln!("{}", serde_json::to_string_pretty(&doc)?)?;
     } else {
         out!("{}", table(&cases))?;
+        outln!("\nWhere the loop's wall time goes (metrics.stage_seconds):\n")?;
+        out!("{}", breakdown(&cases))?;
         outln!(
             "{threads} threads, {} steps per case, {}",
             args.steps,

@@ -46,6 +46,26 @@ fn bench_runs_every_scene_and_prints_json() {
     // π/4 · 9.6² · 22.4 = 1,621 particles.
     let impact = cases[1]["particles"].as_f64().unwrap();
     assert!((1400.0..1900.0).contains(&impact), "{impact}");
+    // The breakdown: the stages each scene runs took time, and together no more than the
+    // loop; the thermal scene (mechanics off) has no transfers of momentum or stress.
+    for (c, stages) in cases.iter().zip([
+        &["bin", "p2g", "grid_update", "g2p", "stress"][..],
+        &["bin", "p2g", "grid_update", "g2p", "stress"][..],
+        &["physics"][..],
+    ]) {
+        let seconds = c["stage_seconds"].as_object().expect("stage_seconds");
+        for stage in stages {
+            assert!(seconds[*stage].as_f64().unwrap() > 0.0, "{stage} of {c}");
+        }
+        let total: f64 = seconds.values().map(|v| v.as_f64().unwrap()).sum();
+        assert!(total <= c["wall_seconds"].as_f64().unwrap(), "{c}");
+    }
+    assert!(
+        !cases[2]["stage_seconds"]
+            .as_object()
+            .unwrap()
+            .contains_key("p2g")
+    );
 }
 
 #[test]

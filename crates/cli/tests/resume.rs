@@ -32,6 +32,7 @@ fn assert_same_results(a: &Path, b: &Path) {
         let object = m.as_object_mut().expect("metrics written");
         object.remove("wall_seconds");
         object.remove("particle_steps_per_second");
+        object.remove("stage_seconds");
         object.remove("resumed_from_step");
         for stage in object
             .get_mut("stages")

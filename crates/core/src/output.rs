@@ -251,6 +251,11 @@ pub struct Metrics {
     pub bytes_per_particle: f64,
     /// Grid storage, bytes.
     pub grid_bytes: usize,
+    /// Wall seconds spent in each stage of the step (`sort`, `bin`, `p2g`, `grid_update`,
+    /// `g2p`, `volume_average`, `physics`, `stress`): where the time goes. After a resume,
+    /// only this process's part of the run.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub stage_seconds: std::collections::BTreeMap<String, f64>,
     /// The method's energy error at the end: the change of the total (kinetic + strain +
     /// gravity) energy less what the `energy_ledger` explains (work done on the bodies,
     /// damping, plastic, friction and cohesive dissipation), relative to the largest

@@ -7,6 +7,7 @@ use super::DimensionDispatch;
 use super::mode::StepMode;
 use super::particle_to_grid::ForceTerm;
 use super::simulation::Simulation;
+use super::stage_clock::StepStage;
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::math::Vector;
@@ -36,7 +37,9 @@ where
     /// physics operators advance between the kinematic and the stress update.
     pub(super) fn mechanical_step(&mut self, dt: f64, physics: bool) {
         self.reorder_if_due();
+        let start = std::time::Instant::now();
         self.bins.rebuild::<D, K>(&self.grid, &self.particles);
+        self.clock.add(StepStage::Bin, start);
         let force = self.force_term();
         if self.contact.is_some() {
             // Validation allows contact with USL only.

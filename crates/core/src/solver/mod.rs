@@ -38,6 +38,7 @@ mod run_loop;
 mod separable;
 mod setup;
 mod simulation;
+mod stage_clock;
 mod stages;
 mod state_averaging;
 mod stats;

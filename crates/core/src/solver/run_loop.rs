@@ -298,6 +298,8 @@ where
             scene: &self.scene_json,
         })?;
         let start = Instant::now();
+        // The stage clock covers the same loop as `start` (not the setup's first stress update).
+        self.clock = Default::default();
         let end_time = self.settings.end_time;
         let mut dt;
         let affine_inertia = self.affine_inertia();
@@ -459,6 +461,7 @@ where
                 0.0
             },
             bytes_per_particle: self.particles.bytes_per_particle(),
+            stage_seconds: self.clock.figures(),
             grid_bytes: self.grid.bytes()
                 + self.volume_average.as_ref().map_or(0, VolumeAverage::bytes)
                 + self.contact.as_ref().map_or(0, MultiField::bytes),

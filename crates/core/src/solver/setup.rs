@@ -246,6 +246,7 @@ where
             settings,
             bins,
             reorder: Reorder::new(n),
+            clock: Default::default(),
             reference,
             fields,
             staging,

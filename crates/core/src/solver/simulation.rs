@@ -9,6 +9,7 @@ use super::interpolation::build_interpolation;
 use super::mode::StepMode;
 use super::multi_field::MultiField;
 use super::particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
+use super::stage_clock::{StageClock, StepStage};
 use super::stats::{KinematicStats, ParticleFault};
 use super::stress_update::{StressScratch, StressStats, update_stress};
 use super::timestep::stable_time_step;
@@ -27,6 +28,7 @@ use crate::physics::{
 use crate::reference::Reference;
 use crate::scene::{Mechanics, Scheme, Transfer};
 use std::sync::Arc;
+use std::time::Instant;
 
 /// One physics operator of a run with its grid scratch arrays.
 pub(super) struct PhysicsSlot {
@@ -66,6 +68,8 @@ pub struct Simulation<const D: usize, K: Kernel> {
     pub(super) settings: Settings<D>,
     pub(super) bins: SlabBins,
     pub(super) reorder: Reorder,
+    /// Wall time per stage of the step.
+    pub(super) clock: StageClock,
     pub(super) reference: Option<Box<dyn Reference>>,
     pub(super) fields: Vec<FieldInfo>,
     pub(super) staging: Vec<Vec<f64>>,
@@ -224,6 +228,7 @@ where
         if self.physics.is_empty() {
             return;
         }
+        let start = Instant::now();
         if self.needs_interpolation && (moved || self.interpolation.node.is_empty()) {
             build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
         }
@@ -231,12 +236,15 @@ where
             self.physics_stage(stage, dt);
         }
         self.physics_dt = self.compute_physics_dt();
+        self.clock.add(StepStage::Physics, start);
     }
 
     /// Stress update of every material (none with mechanics off).
     pub(super) fn update_stresses(&mut self, dt: f64) {
         if self.settings.mechanics != Mechanics::Off {
+            let start = Instant::now();
             self.stresses = update_stress(&mut self.particles, dt, &mut self.stress_scratch);
+            self.clock.add(StepStage::Stress, start);
             self.ledger.free_strain += self.stresses.free_strain_work;
             self.ledger.plastic += self.stresses.plastic_work;
         }
@@ -247,8 +255,10 @@ where
     pub(super) fn reorder_if_due(&mut self) {
         let sort = self.settings.sort_interval;
         if sort > 0 && self.sort_counter.is_multiple_of(sort as u64) {
+            let start = Instant::now();
             let applied = self.stress_scratch.applied_mut();
             self.reorder.apply(&self.grid, &mut self.particles, applied);
+            self.clock.add(StepStage::Sort, start);
         }
         self.sort_counter += 1;
     }
@@ -276,7 +286,9 @@ where
             inertia: self.inertia(),
             gravity: self.settings.gravity,
         };
+        let start = Instant::now();
         particle_to_grid::<D, K>(&mut self.grid, &self.particles, &self.bins, params);
+        self.clock.add(StepStage::P2g, start);
     }
 
     pub(super) fn grid_update(&mut self, dt: f64, forces: bool) {
@@ -296,7 +308,10 @@ where
             damping: self.settings.damping,
             time: self.relax_time.unwrap_or(self.time + dt),
         };
-        update_grid(&mut self.grid, &self.boundaries, params)
+        let start = Instant::now();
+        let work = update_grid(&mut self.grid, &self.boundaries, params);
+        self.clock.add(StepStage::GridUpdate, start);
+        work
     }
 
     pub(super) fn g2p(&mut self, dt: f64, velocity: bool, position: bool, deformation: bool) {
@@ -311,7 +326,9 @@ where
             gravity: self.settings.gravity,
         };
         let fields = self.contact.as_ref().map_or(&[][..], |c| &c.grids[..]);
+        let start = Instant::now();
         let stats = grid_to_particle::<D, K>(&self.grid, fields, &mut self.particles, params);
+        self.clock.add(StepStage::G2p, start);
         if velocity {
             self.kinematics = stats;
         } else {
@@ -329,10 +346,12 @@ where
     /// `moved`: particles moved since the bins were built, so rebuild them.
     pub(super) fn average_volume(&mut self, moved: bool, dt: f64) {
         if let Some(average) = &mut self.volume_average {
+            let start = Instant::now();
             if moved {
                 self.bins.rebuild::<D, K>(&self.grid, &self.particles);
             }
             average.apply::<D, K>(&self.grid, &mut self.particles, &self.bins, dt);
+            self.clock.add(StepStage::VolumeAverage, start);
         }
     }
 
