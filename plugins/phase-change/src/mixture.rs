@@ -253,6 +253,12 @@ impl ConstitutiveLaw for PhaseMixture {
         })
     }
 
+    /// With `solid.plasticity`: the solid's plastic work, for the energy ledger (and as
+    /// heat where the thermal physics gives the material a Taylor–Quinney factor).
+    fn reports_plastic_work(&self) -> bool {
+        self.params.solid.plasticity.is_some()
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let mut fields = batch.state.fields;
         let mut take = |slot: Option<usize>| slot.map(|i| std::mem::take(&mut fields[i]));
@@ -292,7 +298,7 @@ impl ConstitutiveLaw for PhaseMixture {
                 let slot = &mut solid[9 * k..9 * k + 9];
                 let zz = slot[8] + phi * lambda * strain.trace();
                 let mut s3 = mixture_plasticity::embed(&s, zz);
-                plastic.apply(
+                let work = plastic.apply(
                     &mut s3,
                     phi,
                     mu,
@@ -304,6 +310,10 @@ impl ConstitutiveLaw for PhaseMixture {
                         local_damage: local_damage.get_mut(k),
                     },
                 );
+                if let Some(w) = batch.plastic_work.get_mut(k) {
+                    // Per reference volume, as the ledger and the heat source count it.
+                    *w = work * determinant(f);
+                }
                 let (in_plane, zz) = mixture_plasticity::project::<D>(&s3);
                 s = in_plane;
                 store(slot, &s);

@@ -85,6 +85,9 @@ impl SolidPlasticity {
     /// Returns the trial solid stress `s` (3×3; in 2D with σ_zz in place) onto the yield
     /// surface of solid fraction `phi` with shear modulus `mu` at `temperature` over `dt`,
     /// then applies damage and failure. Leaves an elastic stress below yield unchanged.
+    /// Returns the plastic work of the step per unit current volume, q·Δεₚ with q the
+    /// returned equivalent stress (the backward-Euler dissipation; 0 below yield and for a
+    /// failed particle, whose shed stress is not booked as plastic work).
     pub(crate) fn apply(
         &self,
         s: &mut Matrix<3>,
@@ -93,7 +96,7 @@ impl SolidPlasticity {
         temperature: Option<f64>,
         dt: f64,
         state: PlasticState<'_>,
-    ) {
+    ) -> f64 {
         let PlasticState {
             strain,
             damage,
@@ -104,26 +107,27 @@ impl SolidPlasticity {
         let deviator = *s - Matrix::<3>::identity() * mean;
         if failed {
             *s = self.failed_stress(s, dt);
-            return;
+            return 0.0;
         }
         // A particle with next to no solid carries next to no solid stress.
         if phi <= 1e-9 {
-            return;
+            return 0.0;
         }
         let flow = &self.flow_stress;
         let thermal = temperature.map_or(1.0, |t| flow.thermal_factor(t));
         let q_trial = (1.5 * deviator.norm_squared()).sqrt();
         let yield_now = phi * flow.evaluate(*strain, 0.0, thermal).0;
         if q_trial <= yield_now {
-            return;
+            return 0.0;
         }
         let increment = flow.radial_return(q_trial, 3.0 * phi * mu, phi, *strain, thermal, dt);
         let scale = (1.0 - 3.0 * phi * mu * increment / q_trial).max(0.0);
         let q = q_trial * scale;
         *strain += increment;
         *s = deviator * scale + Matrix::<3>::identity() * mean;
+        let work = q * increment;
         let (Some(d), Some(model)) = (damage, &self.damage) else {
-            return;
+            return work;
         };
         let triaxiality = if q > 0.0 {
             (mean / q).clamp(-10.0, 10.0)
@@ -140,12 +144,13 @@ impl SolidPlasticity {
         if let Some(local) = local_damage {
             // The core averages it into `damage` after the step.
             *local += increment / failure_strain;
-            return;
+            return work;
         }
         *d = (*d + increment / failure_strain).min(1.0);
         if *d >= 1.0 {
             *s = self.failed_stress(s, dt);
         }
+        work
     }
 
     /// The derivative of [`SolidPlasticity::apply`] at the trial stress `trial` along the

@@ -279,3 +279,103 @@ fn relaxing_liquid_pressure_follows_the_maxwell_solution() {
     let [s1, _] = run(Some(3e6), 30.0);
     assert!((s1 / (bulk * ln_j) - 1.0).abs() < 1e-5, "{s1}");
 }
+
+/// A fully cured `phase_mixture` with `solid.plasticity` sheared past yield and back: the
+/// work done on it equals the energy it stores plus the plastic work it reports, so the
+/// energy ledger closes. Without the plastic work the balance would miss by more than a
+/// third of the work.
+#[test]
+fn mixture_plastic_work_closes_the_energy_balance_in_shear() {
+    use crate::mixture::{LiquidPhase, PhaseMixture, PhaseMixtureParameters, SolidPhase};
+    use crate::mixture_plasticity::SolidPlasticity;
+    use mpm_core::material::{
+        ConstitutiveLaw, FieldInit, MAX_STATE_FIELDS, StateSlices, StressBatch,
+    };
+    use mpm_core::math::{Matrix, determinant, inverse};
+    use mpm_johnson_cook::FlowStress;
+    let law = PhaseMixture::new(PhaseMixtureParameters {
+        density: 1600.0,
+        solid: SolidPhase {
+            youngs_modulus: 8e9,
+            poisson_ratio: 0.3,
+            plasticity: Some(SolidPlasticity {
+                flow_stress: FlowStress {
+                    yield_stress: 50e6,
+                    hardening_modulus: 200e6,
+                    hardening_exponent: 1.0,
+                    strain_rate_sensitivity: 0.0,
+                    thermal_softening_exponent: 1.0,
+                    reference_strain_rate: 1.0,
+                    room_temperature: 293.15,
+                    melt_temperature: 600.0,
+                },
+                damage: None,
+                failure_time: None,
+            }),
+        },
+        liquid: LiquidPhase {
+            viscosity: 10.0,
+            bulk_modulus: 2e9,
+            pressure_relaxation_time: None,
+        },
+    });
+    assert!(law.reports_plastic_work());
+    let mut state: Vec<Vec<f64>> = law
+        .state_fields()
+        .iter()
+        .map(|spec| match spec.initial {
+            FieldInit::Identity => vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            _ => vec![0.0; spec.components],
+        })
+        .collect();
+    let fraction = [1.0];
+    let volume0 = 2e-9;
+    // Simple shear to γ = 0.03 (yield near 0.009) and back, in 600 steps of 1 s.
+    let steps = 600;
+    let gamma = |k: usize| 0.03 * (1.0 - (2.0 * k as f64 / steps as f64 - 1.0).abs());
+    let shear = |g: f64| {
+        let mut f = Matrix::<3>::identity();
+        f[(0, 1)] = g;
+        f
+    };
+    let (mut work_done, mut plastic) = (0.0, 0.0);
+    let mut stress_before = Matrix::<3>::zeros();
+    let mut f_before = Matrix::<3>::identity();
+    let mut stored = 0.0;
+    for k in 1..=steps {
+        let f = shear(gamma(k));
+        let mut stress = [Matrix::<3>::zeros()];
+        let mut work = [0.0];
+        let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
+        for (slot, field) in fields.iter_mut().zip(state.iter_mut()) {
+            *slot = field;
+        }
+        let stats = law.update_stress(StressBatch {
+            dt: 1.0,
+            deformation_gradient: &[f],
+            velocity_gradient: &[],
+            volume0: &[volume0],
+            stress: &mut stress,
+            state: StateSlices { fields },
+            shared: [&fraction[..], &[], &[], &[]],
+            plastic_work: &mut work,
+        });
+        // Work of the step: the mean Cauchy stress on the rate of deformation, times the
+        // current volume (trapezoid).
+        let l = (f - f_before) * inverse(&f).unwrap();
+        let d = (l + l.transpose()) * 0.5;
+        work_done += 0.5 * (stress[0] + stress_before).dot(&d) * determinant(&f) * volume0;
+        plastic += work[0] * volume0;
+        stored = stats.strain_energy;
+        (stress_before, f_before) = (stress[0], f);
+    }
+    let missing = work_done - stored - plastic;
+    assert!(
+        plastic > 0.35 * work_done,
+        "plastic {plastic:e} of {work_done:e}"
+    );
+    assert!(
+        missing.abs() < 0.01 * work_done,
+        "work {work_done:e} = stored {stored:e} + plastic {plastic:e} + {missing:e}"
+    );
+}
