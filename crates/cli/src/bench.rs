@@ -303,7 +303,7 @@ pub fn table(cases: &[BenchCase]) -> String {
 
 /// Stages of the breakdown table, in step order; the rest of the loop's time is `other`
 /// (output, checks, the time step).
-const BREAKDOWN: [&str; 8] = [
+const BREAKDOWN: [&str; 10] = [
     "sort",
     "bin",
     "p2g",
@@ -312,6 +312,8 @@ const BREAKDOWN: [&str; 8] = [
     "volume_average",
     "physics",
     "stress",
+    "state_average",
+    "solve",
 ];
 
 /// Where each case's loop time went, in percent per stage (Markdown).

@@ -252,7 +252,9 @@ pub struct Metrics {
     /// Grid storage, bytes.
     pub grid_bytes: usize,
     /// Wall seconds spent in each stage of the step (`sort`, `bin`, `p2g`, `grid_update`,
-    /// `g2p`, `volume_average`, `physics`, `stress`): where the time goes. After a resume,
+    /// `g2p`, `volume_average`, `physics`, `stress`, `state_average`, and `solve`: the rest of
+    /// the mode's step, such as the implicit Newton–Krylov solve): where the time goes. The
+    /// rest of the loop (output, checks, the time step) is not broken down. After a resume,
     /// only this process's part of the run.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub stage_seconds: std::collections::BTreeMap<String, f64>,

@@ -6,6 +6,7 @@ use super::failure_watch::FailureWatch;
 use super::multi_field::MultiField;
 use super::output_staging::fill_staging;
 use super::simulation::Simulation;
+use super::stage_clock::StepStage;
 use super::state_averaging::StateAveraging;
 use super::stats::ParticleFault;
 use super::volume_averaging::VolumeAverage;
@@ -298,8 +299,6 @@ where
             scene: &self.scene_json,
         })?;
         let start = Instant::now();
-        // The stage clock covers the same loop as `start` (not the setup's first stress update).
-        self.clock = Default::default();
         let end_time = self.settings.end_time;
         let mut dt;
         let affine_inertia = self.affine_inertia();
@@ -375,7 +374,9 @@ where
             }
             self.step(dt);
             if let Some(averaging) = averaging.as_mut() {
+                let start = Instant::now();
                 averaging.apply(&mut self.particles);
+                self.clock.add(StepStage::StateAverage, start);
             }
             failures.observe(&self.particles, self.time);
             let k = &self.kinematics;

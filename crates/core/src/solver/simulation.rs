@@ -358,7 +358,12 @@ where
     /// Advances one step of size `dt` with the scene's time-integration mode.
     pub fn step(&mut self, dt: f64) {
         if let Some(mut mode) = self.mode.take() {
+            let (start, timed) = (Instant::now(), self.clock.total());
             mode.advance(self, dt);
+            // What the stages inside did not time is the mode's own work.
+            let inner = self.clock.total() - timed;
+            let rest = (start.elapsed().as_secs_f64() - inner).max(0.0);
+            self.clock.add_seconds(StepStage::Solve, rest);
             self.mode = Some(mode);
         }
         self.time += dt;
@@ -377,7 +382,10 @@ where
             }
             self.physics_dt = self.compute_physics_dt();
         }
+        // The stage clock times steps, not this set-up.
+        let clock = self.clock.clone();
         self.update_stresses(0.0);
+        self.clock = clock;
         self.ledger = EnergyLedger::default();
         self.kinematics = measure(&self.particles, self.settings.gravity);
         self.energy0 = self.total_energy();

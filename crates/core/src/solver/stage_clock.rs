@@ -25,10 +25,16 @@ pub(crate) enum StepStage {
     Physics,
     /// The materials' stress update.
     Stress,
+    /// Averaging a material's state over its length (nonlocal damage), after the step.
+    StateAverage,
+    /// The rest of the time-integration mode's step: the implicit mode's Newton–Krylov
+    /// solve, the incompressible mode's projection; for an explicit step, clearing the grid
+    /// and the contact laws.
+    Solve,
 }
 
 /// Names of the stages in `metrics.stage_seconds`, in [`StepStage`] order.
-const NAMES: [&str; 8] = [
+const NAMES: [&str; 10] = [
     "sort",
     "bin",
     "p2g",
@@ -37,6 +43,8 @@ const NAMES: [&str; 8] = [
     "volume_average",
     "physics",
     "stress",
+    "state_average",
+    "solve",
 ];
 
 /// Seconds per stage.
@@ -50,6 +58,17 @@ impl StageClock {
     #[inline]
     pub fn add(&mut self, stage: StepStage, start: Instant) {
         self.seconds[stage as usize] += start.elapsed().as_secs_f64();
+    }
+
+    /// Adds `seconds` to `stage`.
+    #[inline]
+    pub fn add_seconds(&mut self, stage: StepStage, seconds: f64) {
+        self.seconds[stage as usize] += seconds;
+    }
+
+    /// Seconds of every stage together.
+    pub fn total(&self) -> f64 {
+        self.seconds.iter().sum()
     }
 
     /// The stages that took any time, by name.

@@ -69,6 +69,8 @@ pub(super) fn run_stages(
         None => Vec::new(),
     };
     let mut last = Metrics::default();
+    // The stage clock of every stage run by this process, summed.
+    let mut stage_seconds: BTreeMap<String, f64> = BTreeMap::new();
     let mut steps_before = summaries
         .iter()
         .map(|s: &StageSummary| s.steps)
@@ -149,6 +151,9 @@ pub(super) fn run_stages(
             fatigue: stress.fatigue,
         });
         steps_before = metrics.steps;
+        for (stage, seconds) in &metrics.stage_seconds {
+            *stage_seconds.entry(stage.clone()).or_insert(0.0) += seconds;
+        }
         let finished = metrics.outcome == Some(Outcome::Finished);
         last = metrics;
         handed_over = Some(end);
@@ -164,6 +169,7 @@ pub(super) fn run_stages(
         0.0
     };
     last.stages = summaries;
+    last.stage_seconds = stage_seconds;
     sink.finish_stages(&last)?;
     Ok(last)
 }
