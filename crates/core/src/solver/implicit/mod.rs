@@ -19,6 +19,7 @@ mod finish;
 mod newton;
 mod preconditioner;
 mod residual;
+mod tangent_estimate;
 mod workspace;
 
 use super::DimensionDispatch;

@@ -1,7 +1,8 @@
 //! The preconditioner of the implicit solver's Krylov iterations: an estimate of the
-//! tangent, K = Σ_p Vₙ (Bᵀ C B + the initial-stress term ∇wₐ·σ∇w_b I) with an isotropic C
-//! (each particle's λ, μ measured from its material's own stress update), plus the Newmark
-//! mass term,
+//! tangent, K = Σ_p Vₙ (Bᵀ C B + the initial-stress term ∇wₐ·σ∇w_b I) with each particle's C
+//! measured from its material's own stress update (`tangent_estimate.rs`: the whole tangent,
+//! or with F-bar an isotropic λ, μ; the isotropic one also when the whole one does not
+//! factor), plus the Newmark mass term,
 //! assembled at every Newton iteration from the particles' current stress and factored by a
 //! sparse Cholesky. The initial-stress term matters for thin, prestressed bodies (a
 //! bimaterial strip's bending mode is as soft as its geometric stiffness); when it makes the
@@ -12,6 +13,7 @@
 use super::super::DimensionDispatch;
 use super::super::simulation::Simulation;
 use super::residual::Inertia;
+use super::tangent_estimate::add_anisotropic_block;
 use super::workspace::{INACTIVE, Workspace};
 use crate::kernels::Kernel;
 use crate::linear_solvers::sparse_cholesky::SparseCholesky;
@@ -70,9 +72,20 @@ where
         return None;
     }
     super::residual::linearise_at(sim, work);
-    super::residual::probe_moduli(sim, work, dt);
-    assemble_and_factor(sim, work, inertia, damping, true)
-        .or_else(|| assemble_and_factor(sim, work, inertia, damping, false))
+    super::tangent_estimate::probe(sim, work, dt);
+    let attempt = |sim: &Simulation<D, K>, work: &mut Workspace<D>| {
+        assemble_and_factor(sim, work, inertia, damping, true)
+            .or_else(|| assemble_and_factor(sim, work, inertia, damping, false))
+    };
+    attempt(sim, work).or_else(|| {
+        // A whole tangent that is not positive definite (a softening particle): the
+        // isotropic estimate, whose moduli are floored, instead.
+        if work.tangent.is_empty() {
+            return None;
+        }
+        work.tangent.clear();
+        attempt(sim, work)
+    })
 }
 
 fn assemble_and_factor<const D: usize, K: Kernel>(
@@ -115,6 +128,8 @@ where
         return None;
     }
     let fbar = work.fbar.is_some();
+    // The whole tangent where it was measured (without F-bar), else the isotropic moduli.
+    let anisotropic = !fbar && work.tangent.len() == sim.particles.len();
     let mut patch = std::mem::take(&mut work.patch_gradient);
     let mut block = std::mem::take(&mut work.block);
     block.clear();
@@ -133,7 +148,7 @@ where
         while run_end < order.len() && work.interp.node[order[run_end] as usize * stencil] == first
         {
             let p = order[run_end] as usize;
-            let [mut lambda, mu] = work.moduli[p];
+            let [mut lambda, mut mu] = work.moduli[p];
             let v = work.volume_n[p];
             if let Some(average) = &work.fbar {
                 let patch_of_p = average.patch(p);
@@ -153,6 +168,11 @@ where
             }
             let stress = sim.particles.stress[p];
             let base = p * stencil;
+            if anisotropic {
+                let gradient = &work.interp.gradient[base..base + stencil];
+                add_anisotropic_block(&mut block, gradient, &work.tangent[p], v);
+                (lambda, mu) = (0.0, 0.0);
+            }
             for a in 0..stencil {
                 let ga = work.interp.gradient[base + a];
                 let sa = stress * ga;

@@ -194,7 +194,7 @@ fn apply_fbar<const D: usize, K: Kernel>(
 
 /// The iterate's Ā_p = s_p (I + ∇Δu_p) (A_p without F-bar).
 #[inline]
-fn a_bar<const D: usize>(work: &Workspace<D>, p: usize) -> Matrix<D> {
+pub(super) fn a_bar<const D: usize>(work: &Workspace<D>, p: usize) -> Matrix<D> {
     let a = Matrix::<D>::identity() + work.grad_du[p];
     work.fbar.as_ref().map_or(a, |avg| a * avg.scale::<D>(p))
 }
@@ -538,68 +538,4 @@ where
         force_scale,
         valid: finite && stress.non_finite.is_none(),
     }
-}
-
-/// Measures each particle's isotropic tangent moduli (λ, μ) at the iterate saved by
-/// [`linearise_at`] with two directional stress differences of its material's own update
-/// (a volumetric and a shear δF), into `work.moduli`: the preconditioner then sees what
-/// every law does (a liquid's vanishing shear stiffness, a stiff die) without asking the
-/// plugins for a tangent.
-pub(super) fn probe_moduli<const D: usize, K: Kernel>(
-    sim: &mut Simulation<D, K>,
-    work: &mut Workspace<D>,
-    dt: f64,
-) where
-    dyn Material: DimensionDispatch<D>,
-{
-    let n = sim.particles.len();
-    let identity = Matrix::<D>::identity();
-    let mut shear = Matrix::<D>::zeros();
-    shear[(0, 1)] = 1.0;
-    shear[(1, 0)] = 1.0;
-    const EPS: f64 = 1e-7;
-    let floor = shear_floor(work.fbar.is_some());
-    work.moduli.resize(n, [0.0; 2]);
-    for (probe, g) in [identity, shear].into_iter().enumerate() {
-        let rate = !sim.particles.velocity_gradient.is_empty();
-        for p in 0..n {
-            let a = a_bar(work, p);
-            sim.particles.deformation_gradient[p] = (a + g * EPS) * work.f_n[p];
-            if rate {
-                sim.particles.velocity_gradient[p] = (a - identity + g * EPS) / dt;
-            }
-        }
-        work.restore_state(sim);
-        update_stress(&mut sim.particles, dt, &mut sim.stress_scratch);
-        for p in 0..n {
-            let d = (sim.particles.stress[p] - work.stress_cur[p]) / EPS;
-            if probe == 0 {
-                // δσ = (Dλ + 2μ) ε I
-                work.moduli[p][0] = d[(0, 0)];
-            } else {
-                // δσ₀₁ = 2μ ε; a shear stiffness of at least a small share of the volumetric
-                // one keeps the estimate factorable where a law has next to none (a liquid).
-                let mu = (0.5 * d[(0, 1)]).max(floor * work.moduli[p][0].max(0.0));
-                let lambda = ((work.moduli[p][0] - 2.0 * mu) / D as f64).max(-2.0 * mu / D as f64);
-                work.moduli[p] = [lambda, mu];
-            }
-        }
-    }
-    // Back to the iterate (the material state is restored before every later update).
-    let rate = !sim.particles.velocity_gradient.is_empty();
-    for p in 0..n {
-        let a = a_bar(work, p);
-        sim.particles.deformation_gradient[p] = a * work.f_n[p];
-        sim.particles.stress[p] = work.stress_cur[p];
-        if rate {
-            sim.particles.velocity_gradient[p] = (a - identity) / dt;
-        }
-    }
-}
-
-/// The least shear stiffness the preconditioner's estimate gives a particle, as a share of
-/// its volumetric stiffness Dλ + 2μ: 1% without F-bar; with F-bar the volumetric part acts
-/// on patch means, so the estimate stays factorable with far less.
-fn shear_floor(fbar: bool) -> f64 {
-    if fbar { 1e-4 } else { 0.01 }
 }

@@ -136,6 +136,9 @@ pub(super) struct Workspace<const D: usize> {
     pub step_of: Vec<f64>,
     /// Each particle's measured isotropic tangent (λ, μ), for the preconditioner.
     pub moduli: Vec<[f64; 2]>,
+    /// Each particle's measured whole tangent ∂σ/∂ε (Voigt, `tangent_estimate::components`
+    /// order, row-major; the first 9 entries in 2D), without F-bar; empty with it.
+    pub tangent: Vec<[f64; 36]>,
     /// Per-thread force buffers of the scatter.
     pub buffers: Vec<Vec<f64>>,
     /// Increment gradient ∇Δu of each particle at the last evaluation.
