@@ -301,24 +301,9 @@ pub fn table(cases: &[BenchCase]) -> String {
     s
 }
 
-/// Stages of the breakdown table, in step order; the rest of the loop's time is `other`
-/// (output, checks, the time step).
-const BREAKDOWN: [&str; 10] = [
-    "sort",
-    "bin",
-    "p2g",
-    "grid_update",
-    "g2p",
-    "volume_average",
-    "physics",
-    "stress",
-    "state_average",
-    "solve",
-];
-
 /// Where each case's loop time went, in percent per stage (Markdown).
 pub fn breakdown(cases: &[BenchCase]) -> String {
-    let shown: Vec<&str> = BREAKDOWN
+    let shown: Vec<&str> = mpm_core::solver::STEP_STAGES
         .into_iter()
         .filter(|s| cases.iter().any(|c| c.stage_seconds.contains_key(*s)))
         .collect();
@@ -337,6 +322,23 @@ pub fn breakdown(cases: &[BenchCase]) -> String {
         s += &row;
     }
     s
+}
+
+/// The head of a `--json` document: the machine, date, commit, build and steps per case.
+pub(crate) fn header(threads: usize, steps: u64) -> Value {
+    json!({
+        "machine": {
+            "cores": std::thread::available_parallelism().map_or(0, |n| n.get()),
+            "threads": threads,
+            "os": std::env::consts::OS,
+            "arch": std::env::consts::ARCH,
+        },
+        "date": today(),
+        "commit": commit(),
+        "version": env!("CARGO_PKG_VERSION"),
+        "debug_assertions": cfg!(debug_assertions),
+        "steps": steps,
+    })
 }
 
 /// Today's date (UTC) as `YYYY-MM-DD`, from the system clock.
@@ -399,20 +401,8 @@ pub fn run(args: BenchArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
     }
     let threads = rayon::current_num_threads();
     if args.json {
-        let doc = json!({
-            "machine": {
-                "cores": std::thread::available_parallelism().map_or(0, |n| n.get()),
-                "threads": threads,
-                "os": std::env::consts::OS,
-                "arch": std::env::consts::ARCH,
-            },
-            "date": today(),
-            "commit": commit(),
-            "version": env!("CARGO_PKG_VERSION"),
-            "debug_assertions": cfg!(debug_assertions),
-            "steps": args.steps,
-            "cases": cases,
-        });
+        let mut doc = header(threads, args.steps);
+        doc["cases"] = json!(cases);
         outln!("{}", serde_json::to_string_pretty(&doc)?)?;
     } else {
         out!("{}", table(&cases))?;

@@ -6,7 +6,7 @@
 //! The trajectories are the check that the peer computes the same thing: the same
 //! particles, material, transfer, walls and step, so the same motion up to round-off.
 
-use crate::bench::{BenchArgs, BenchCase, commit, run_scene_case, scene, today};
+use crate::bench::{BenchArgs, BenchCase, header, run_scene_case, scene, today};
 use crate::exit_status::{ExitStatus, input_error};
 use crate::stdout::{out, outln};
 use anyhow::Context;
@@ -184,21 +184,9 @@ pub fn run(
     std::fs::remove_file(&program).ok();
     let cases = result?;
     if args.json {
-        let doc = json!({
-            "machine": {
-                "cores": std::thread::available_parallelism().map_or(0, |n| n.get()),
-                "threads": threads,
-                "os": std::env::consts::OS,
-                "arch": std::env::consts::ARCH,
-            },
-            "date": today(),
-            "commit": commit(),
-            "version": env!("CARGO_PKG_VERSION"),
-            "debug_assertions": cfg!(debug_assertions),
-            "steps": args.steps,
-            "peer": "taichi",
-            "cases": cases,
-        });
+        let mut doc = header(threads, args.steps);
+        doc["peer"] = json!("taichi");
+        doc["cases"] = json!(cases);
         outln!("{}", serde_json::to_string_pretty(&doc)?)?;
     } else {
         out!("{}", table(&cases, threads))?;

@@ -56,6 +56,7 @@ use crate::reference::{Frame as ReferenceFrame, Reference};
 use crate::scene::{KernelName, ValidatedScene};
 
 pub use simulation::Simulation;
+pub use stage_clock::NAMES as STEP_STAGES;
 
 pub use timestep::stable_time_step;
 

@@ -33,8 +33,8 @@ pub(crate) enum StepStage {
     Solve,
 }
 
-/// Names of the stages in `metrics.stage_seconds`, in [`StepStage`] order.
-const NAMES: [&str; 10] = [
+/// Names of the stages in `metrics.stage_seconds`, in step order.
+pub const NAMES: [&str; 10] = [
     "sort",
     "bin",
     "p2g",
