@@ -564,6 +564,17 @@ impl<const D: usize> Boundaries<D> {
                 let mut ijk_front = ijk_ghost;
                 ijk_front[a] = front;
                 let (g, f) = (grid.index(ijk_ghost), grid.index(ijk_front));
+                let empty = |v: &Vector<D>| *v == Vector::<D>::zeros();
+                if !grid.is_active(g)
+                    || (grid.mass[g] == 0.0
+                        && empty(&grid.momentum[g])
+                        && (!flip || empty(&grid.force[g])))
+                {
+                    // Nothing to fold (what an inactive block of a sparse grid holds).
+                    return;
+                }
+                // A sparse grid's node in front may be in a block no stencil reached.
+                grid.activate(f);
                 grid.mass[f] += grid.mass[g];
                 // The ghost is no degree of freedom any more: its velocity is set by the
                 // mirror after the update.
@@ -626,6 +637,11 @@ impl<const D: usize> Boundaries<D> {
     pub fn mirror_stick_walls(&self, grid: &mut crate::grid::Grid<D>) {
         self.mirrored_wall_planes(grid.nodes, |a, ghost, front, symmetry| {
             for_each_node_in_plane(grid.nodes, a, ghost, |ijk_ghost| {
+                let g = grid.index(ijk_ghost);
+                if !grid.is_active(g) {
+                    // No stencil reads it this step (a sparse grid's unused block).
+                    return;
+                }
                 let mut ijk_front = ijk_ghost;
                 ijk_front[a] = front;
                 let mut value = grid.momentum[grid.index(ijk_front)];
@@ -634,7 +650,6 @@ impl<const D: usize> Boundaries<D> {
                 } else {
                     value = -value;
                 }
-                let g = grid.index(ijk_ghost);
                 grid.momentum[g] = value;
             });
         });

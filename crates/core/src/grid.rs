@@ -1,9 +1,19 @@
-//! The background grid: a dense box of nodes holding mass and momentum (then velocity).
+//! The background grid: a box of nodes holding mass and momentum (then velocity).
 
+use crate::grid_activity::{BLOCK_NODES, GridActivity};
 use crate::math::Vector;
+use crate::paged::PagedArray;
+use crate::solver::parallel::SharedSlice;
+use std::ops::Range;
 
-/// Dense nodal storage. Node `(i, j, k)` is at `origin + (i, j, k)·dx` and lives at index
+/// Nodal storage. Node `(i, j, k)` is at `origin + (i, j, k)·dx` and lives at index
 /// `i·stride[0] + j·stride[1] + k`; 2D grids have one node along z.
+///
+/// The arrays span the whole box but take memory page by page as they are written
+/// ([`PagedArray`]). A sparse grid ([`Grid::set_sparse`]) also tracks which blocks of
+/// nodes the particles' stencils reach ([`GridActivity`]): only those are cleared,
+/// updated and kept, so its work and memory follow the particles. A dense grid clears and
+/// updates every node, for the solver modes whose operators write anywhere on the grid.
 pub struct Grid<const D: usize> {
     /// Position of node (0, 0, 0).
     pub origin: Vector<D>,
@@ -18,14 +28,21 @@ pub struct Grid<const D: usize> {
     /// Index strides of the axes.
     pub stride: [usize; 3],
     /// Nodal mass.
-    pub mass: Vec<f64>,
+    pub mass: PagedArray<f64>,
     /// Nodal momentum after P2G; the grid update turns it into velocity in place.
-    pub momentum: Vec<Vector<D>>,
+    pub momentum: PagedArray<Vector<D>>,
     /// Internal plus external force, kept apart from momentum only for FLIP (empty otherwise).
-    pub force: Vec<Vector<D>>,
+    pub force: PagedArray<Vector<D>>,
     /// Velocity before the momentum update, only for FLIP (empty otherwise).
-    pub velocity_old: Vec<Vector<D>>,
+    pub velocity_old: PagedArray<Vector<D>>,
+    /// The blocks in use, for a sparse grid (`None`: dense).
+    activity: Option<GridActivity>,
+    /// Node ranges of one clear, reused.
+    clear_ranges: Vec<(Range<usize>, bool)>,
 }
+
+/// Nodes per unit of a dense grid's parallel loops.
+const DENSE_CHUNK: usize = 4096;
 
 impl<const D: usize> Grid<D> {
     /// A zeroed grid covering `[min, min + cells·dx]`; `flip` allocates the FLIP arrays.
@@ -44,10 +61,77 @@ impl<const D: usize> Grid<D> {
             cells,
             nodes,
             stride,
-            mass: vec![0.0; count],
-            momentum: vec![Vector::<D>::zeros(); count],
-            force: vec![Vector::<D>::zeros(); extra],
-            velocity_old: vec![Vector::<D>::zeros(); extra],
+            mass: PagedArray::zeroed(count),
+            momentum: PagedArray::zeroed(count),
+            force: PagedArray::zeroed(extra),
+            velocity_old: PagedArray::zeroed(extra),
+            activity: None,
+            clear_ranges: Vec::new(),
+        }
+    }
+
+    /// Makes the grid sparse (only the blocks particles reach are cleared, updated and kept)
+    /// or dense. Either way every node reads zero until the next P2G.
+    pub fn set_sparse(&mut self, sparse: bool) {
+        let len = self.len();
+        for array in [&mut self.momentum, &mut self.force, &mut self.velocity_old] {
+            let n = array.len();
+            array.release(0..n);
+        }
+        self.mass.release(0..len);
+        self.activity = sparse.then(|| GridActivity::new(len));
+    }
+
+    /// Whether the grid is sparse.
+    pub fn is_sparse(&self) -> bool {
+        self.activity.is_some()
+    }
+
+    /// Marks the blocks of nodes `range` as reached by a stencil in the coming step (a
+    /// sparse grid's binning does this for every particle before [`Grid::clear`]); nothing
+    /// for a dense grid. Thread-safe.
+    #[inline(always)]
+    pub fn mark(&self, range: Range<usize>) {
+        if let Some(activity) = &self.activity {
+            activity.mark(range);
+        }
+    }
+
+    /// Whether node `index` is in use this step (always, on a dense grid).
+    #[inline(always)]
+    pub fn is_active(&self, index: usize) -> bool {
+        self.activity.as_ref().is_none_or(|a| a.is_active(index))
+    }
+
+    /// Puts node `index`'s block in use this step, for a writer no stencil announced (a
+    /// wall folding mass in front of it); its nodes hold zeros until written.
+    pub fn activate(&mut self, index: usize) {
+        if let Some(activity) = &mut self.activity {
+            activity.activate(index);
+        }
+    }
+
+    /// The units of the grid's node loops: every node of a dense grid falls in one, every
+    /// node in use of a sparse one (elsewhere mass and momentum are zero and stay so).
+    pub fn blocks(&self) -> NodeBlocks<'_> {
+        NodeBlocks {
+            activity: self.activity.as_ref(),
+            len: self.len(),
+        }
+    }
+
+    /// The blocks to loop over and the arrays, borrowed apart: the grid update writes
+    /// velocities block by block.
+    pub fn split_for_update(&mut self) -> GridArrays<'_, D> {
+        GridArrays {
+            blocks: NodeBlocks {
+                activity: self.activity.as_ref(),
+                len: self.mass.len(),
+            },
+            mass: &self.mass,
+            momentum: &mut self.momentum,
+            force: &self.force,
+            velocity_old: &mut self.velocity_old,
         }
     }
 
@@ -79,25 +163,129 @@ impl<const D: usize> Grid<D> {
         node_position(&self.origin, self.dx, ijk)
     }
 
-    /// Zeroes the arrays P2G accumulates into.
+    /// Zeroes the arrays P2G accumulates into. A sparse grid starts a step here: the
+    /// blocks marked since the last clear become the active ones; blocks no longer reached
+    /// give their memory back.
     pub fn clear(&mut self) {
         use rayon::prelude::*;
         const CHUNK: usize = 1 << 14;
-        self.mass.par_chunks_mut(CHUNK).for_each(|c| c.fill(0.0));
-        self.momentum
-            .par_chunks_mut(CHUNK)
-            .for_each(|c| c.fill(Vector::<D>::zeros()));
-        self.force
-            .par_chunks_mut(CHUNK)
-            .for_each(|c| c.fill(Vector::<D>::zeros()));
+        let Some(activity) = &mut self.activity else {
+            self.mass.par_chunks_mut(CHUNK).for_each(|c| c.fill(0.0));
+            self.momentum
+                .par_chunks_mut(CHUNK)
+                .for_each(|c| c.fill(Vector::<D>::zeros()));
+            self.force
+                .par_chunks_mut(CHUNK)
+                .for_each(|c| c.fill(Vector::<D>::zeros()));
+            return;
+        };
+        // Blocks no longer reached give their pages back, consecutive ones in one call; the
+        // blocks still reached are zeroed in parallel.
+        let ranges = &mut self.clear_ranges;
+        ranges.clear();
+        if !activity.has_marks() {
+            // A second clear within the step (USF): the same blocks, zeroed.
+            let blocks = NodeBlocks {
+                activity: Some(&*activity),
+                len: self.mass.len(),
+            };
+            ranges.extend((0..blocks.count()).map(|k| (blocks.range(k), true)));
+        } else {
+            activity.begin_step(|range, keep| match ranges.last_mut() {
+                Some((last, false)) if !keep && last.end == range.start => last.end = range.end,
+                _ => ranges.push((range, keep)),
+            });
+        }
+        let flip = !self.force.is_empty();
+        for (range, _) in self.clear_ranges.iter().filter(|(_, keep)| !keep) {
+            self.mass.release(range.clone());
+            self.momentum.release(range.clone());
+            if flip {
+                self.force.release(range.clone());
+                self.velocity_old.release(range.clone());
+            }
+        }
+        let zero = Vector::<D>::zeros();
+        let mass = SharedSlice::new(&mut self.mass);
+        let momentum = SharedSlice::new(&mut self.momentum);
+        let force = SharedSlice::new(&mut self.force);
+        self.clear_ranges
+            .par_iter()
+            .filter(|(_, keep)| *keep)
+            .for_each(|(range, _)| {
+                // SAFETY: the ranges are distinct blocks, so no two tasks touch one node.
+                unsafe {
+                    mass.range(range.clone()).fill(0.0);
+                    momentum.range(range.clone()).fill(zero);
+                    if flip {
+                        force.range(range.clone()).fill(zero);
+                    }
+                }
+            });
     }
 
-    /// Bytes held by the grid arrays.
-    pub fn bytes(&self) -> usize {
-        self.mass.capacity() * 8
-            + (self.momentum.capacity() + self.force.capacity() + self.velocity_old.capacity())
-                * std::mem::size_of::<Vector<D>>()
+    /// Zeroes the momentum of every node in use (MUSL's second transfer keeps the mass).
+    pub fn clear_momentum(&mut self) {
+        let zero = Vector::<D>::zeros();
+        let view = self.split_for_update();
+        for k in 0..view.blocks.count() {
+            view.momentum[view.blocks.range(k)].fill(zero);
+        }
     }
+
+    /// Bytes the grid arrays take: all of them for a dense grid; for a sparse one, the
+    /// largest number of blocks in use at once so far, and the tracking.
+    pub fn bytes(&self) -> usize {
+        let per_node = 8
+            + (usize::from(!self.momentum.is_empty())
+                + usize::from(!self.force.is_empty())
+                + usize::from(!self.velocity_old.is_empty()))
+                * std::mem::size_of::<Vector<D>>();
+        match &self.activity {
+            None => self.len() * per_node,
+            Some(a) => a.peak_blocks() * BLOCK_NODES * per_node + a.bytes(),
+        }
+    }
+}
+
+/// The units of a grid's node loops ([`Grid::blocks`]).
+#[derive(Clone, Copy)]
+pub struct NodeBlocks<'a> {
+    activity: Option<&'a GridActivity>,
+    len: usize,
+}
+
+impl NodeBlocks<'_> {
+    /// Number of units.
+    pub fn count(&self) -> usize {
+        match self.activity {
+            Some(a) => a.active_blocks(),
+            None => self.len.div_ceil(DENSE_CHUNK),
+        }
+    }
+
+    /// Node range of unit `k`.
+    #[inline(always)]
+    pub fn range(&self, k: usize) -> Range<usize> {
+        match self.activity {
+            Some(a) => a.active_range(k),
+            None => k * DENSE_CHUNK..((k + 1) * DENSE_CHUNK).min(self.len),
+        }
+    }
+}
+
+/// A grid's arrays and loop units borrowed apart ([`Grid::split_for_update`]).
+pub struct GridArrays<'a, const D: usize> {
+    /// The units of the node loops.
+    pub blocks: NodeBlocks<'a>,
+    /// Nodal mass.
+    pub mass: &'a [f64],
+    /// Nodal momentum, turned into velocity.
+    pub momentum: &'a mut [Vector<D>],
+    /// FLIP forces (empty otherwise).
+    pub force: &'a [Vector<D>],
+    /// FLIP's velocity before the update (empty otherwise).
+    pub velocity_old: &'a mut [Vector<D>],
 }
 
 /// Integer coordinates of node `index` for index strides `stride`.

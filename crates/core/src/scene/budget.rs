@@ -5,8 +5,13 @@
 
 use super::Issue;
 use super::lattice::{BoxLattice, CentredLattice, MAX_SPACINGS, Region, bounding_box};
-use super::{Scene, Shape};
+use super::{AntiLocking, Scene, Shape};
+use crate::grid_activity::{BLOCK_NODES, MAX_BLOCKS_PER_PARTICLE};
 use std::sync::OnceLock;
+
+/// Most nodes a grid may span: a sparse grid reserves address space for the whole box
+/// (32 bytes a node in 3D: 0.5 TB here), though it takes memory only where particles are.
+pub const MAX_GRID_SPAN_NODES: f64 = 1.6e10;
 
 /// The largest work a scene may ask for. The defaults are generous for one machine; `mpm`
 /// raises them with `--limit NAME=N` and the job service sets its own.
@@ -108,9 +113,12 @@ pub struct Estimate {
     pub body_particles: Vec<f64>,
     /// Lattice points visited to fill each body's shape.
     pub body_points: Vec<f64>,
-    /// Grid nodes, padding included (0 when the domain is malformed), of the shared grid and
-    /// of every contact field's grid.
+    /// Grid nodes held in memory at most (0 when the domain is malformed): the whole box,
+    /// padding included, for the shared grid and every contact field's grid; for a sparse
+    /// grid no more than its particles' stencils can reach.
     pub grid_nodes: f64,
+    /// Nodes of the box the grid spans (its address space, for a sparse grid).
+    pub grid_span_nodes: f64,
 }
 
 impl Estimate {
@@ -255,6 +263,14 @@ pub fn estimate(s: &Scene) -> Estimate {
         e.body_points.push(points);
         e.body_particles.push(particles);
     }
+    e.grid_span_nodes = e.grid_nodes;
+    // A sparse grid holds only the blocks particles reach. The estimate leaves it out where
+    // the scene keeps other arrays over the whole box (F-bar's, physics operators').
+    let dense_arrays = s.solver.anti_locking == AntiLocking::Fbar || !s.physics.is_empty();
+    if s.solver.sparse_grid(s.contact.is_some()) && !dense_arrays {
+        let reach = e.particles() * (MAX_BLOCKS_PER_PARTICLE * BLOCK_NODES) as f64;
+        e.grid_nodes = e.grid_nodes.min(reach);
+    }
     e
 }
 
@@ -331,9 +347,19 @@ pub(crate) fn check(s: &Scene, limits: &Limits) -> Vec<Issue> {
         issues.push(Issue::new(
             "domain.cell_size",
             format!(
-                "the grid would have {:.3e} nodes (domain / cell_size, with padding); at most {} \
-                 are allowed (limit `grid_nodes`)",
+                "the grid would hold {:.3e} nodes (domain / cell_size, with padding, or for a \
+                 sparse grid what its particles can reach); at most {} are allowed (limit \
+                 `grid_nodes`)",
                 e.grid_nodes, limits.max_grid_nodes
+            ),
+        ));
+    } else if e.grid_span_nodes > MAX_GRID_SPAN_NODES {
+        issues.push(Issue::new(
+            "domain.cell_size",
+            format!(
+                "the grid would span {:.3e} nodes (domain / cell_size, with padding); a grid \
+                 spans at most {MAX_GRID_SPAN_NODES:.1e}, even a sparse one",
+                e.grid_span_nodes
             ),
         ));
     }

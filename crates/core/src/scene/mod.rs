@@ -29,7 +29,7 @@ pub use inflow::{INJECTED, Inflow, InflowLayout};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, Output, StopCriteria};
 pub use solver_settings::{
-    AntiLocking, EnclosedAirSettings, FreeStrain2d, ImplicitForm, ImplicitSettings,
+    AntiLocking, EnclosedAirSettings, FreeStrain2d, GridStorage, ImplicitForm, ImplicitSettings,
     IncompressibleSettings, KernelName, KrylovMethod, Mechanics, Scheme, Solver, TangentMethod,
     Transfer, ViscousIntegration,
 };

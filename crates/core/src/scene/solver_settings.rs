@@ -90,10 +90,48 @@ pub struct Solver {
     /// out-of-plane part into in-plane stress.
     #[serde(default, skip_serializing_if = "FreeStrain2d::is_in_plane")]
     pub free_strain_2d: FreeStrain2d,
+    /// How the grid is stored: `sparse` (the default) keeps, clears and updates only the
+    /// blocks of nodes the particles' stencils reach, where the mode allows it (explicit
+    /// dynamics and quasi-static relaxation without contact); `dense` every node, always.
+    #[serde(default, skip_serializing_if = "GridStorage::is_sparse")]
+    pub grid: GridStorage,
     /// How mechanics advances: explicit dynamics (the default), not at all (physics only,
     /// particles stay put), or quasi-statically (relaxed to equilibrium every step).
     #[serde(default, skip_serializing_if = "Mechanics::is_dynamic")]
     pub mechanics: Mechanics,
+}
+
+/// How the background grid is stored (`solver.grid`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum GridStorage {
+    /// Only blocks of 512 nodes that particles' stencils reach are cleared, updated and
+    /// held in memory; memory and grid work follow the particles, not the domain.
+    #[default]
+    Sparse,
+    /// Every node every step (the reference the sparse grid is checked against).
+    Dense,
+}
+
+impl GridStorage {
+    fn is_sparse(&self) -> bool {
+        *self == GridStorage::Sparse
+    }
+}
+
+impl Solver {
+    /// Whether a run keeps its grid sparse: `solver.grid` asks for it and every grid write
+    /// of the mode comes from a stencil the binning announced, as in explicit dynamics and
+    /// quasi-static relaxation without contact fields (projection, Newton and contact
+    /// operators write anywhere on the grid).
+    pub fn sparse_grid(&self, contact: bool) -> bool {
+        self.grid.is_sparse()
+            && !contact
+            && matches!(
+                self.mechanics,
+                Mechanics::Dynamic | Mechanics::QuasiStatic { .. }
+            )
+    }
 }
 
 /// How the mechanical part of a step is advanced.

@@ -10,7 +10,6 @@ use super::simulation::Simulation;
 use super::stage_clock::StepStage;
 use crate::kernels::Kernel;
 use crate::material::Material;
-use crate::math::Vector;
 use crate::scene::Scheme;
 
 /// Explicit dynamics: one mechanical step per time step, bounded by the CFL condition.
@@ -77,7 +76,7 @@ where
                 self.grid_update(dt, true);
                 self.g2p(dt, true, false, false);
                 // Map the new particle momentum back (mass is unchanged: same positions).
-                self.grid.momentum.fill(Vector::<D>::zeros());
+                self.grid.clear_momentum();
                 self.p2g(dt, false, ForceTerm::None);
                 self.grid_update(dt, false);
                 let velocity_stats = self.kinematics;

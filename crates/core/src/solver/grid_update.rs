@@ -5,7 +5,7 @@
 
 use super::parallel::{SharedSlice, ordered_reduce};
 use crate::boundary::Boundaries;
-use crate::grid::{Grid, node_coords, node_position};
+use crate::grid::{Grid, GridArrays, node_coords, node_position};
 use crate::math::Vector;
 
 /// What one grid update applies.
@@ -69,27 +69,26 @@ pub fn update_grid<const D: usize>(
     boundaries: &Boundaries<D>,
     params: GridParams<D>,
 ) -> GridWork {
-    const CHUNK: usize = 4096;
     boundaries.fold_stick_walls(grid);
     let damping = (-params.damping * params.dt).exp();
-    let old_out = SharedSlice::new(&mut grid.velocity_old);
     let (origin, dx, stride) = (grid.origin, grid.dx, grid.stride);
-    let Grid {
+    let GridArrays {
+        blocks,
         mass,
         momentum,
         force,
-        ..
-    } = &mut *grid;
-    let (mass, force) = (&*mass, &*force);
-    let len = momentum.len();
+        velocity_old,
+    } = grid.split_for_update();
+    let old_out = SharedSlice::new(velocity_old);
     let momentum = SharedSlice::new(momentum);
     let work = ordered_reduce(
-        len.div_ceil(CHUNK),
+        blocks.count(),
         || (0.0, 0.0, 0.0),
-        |chunk| {
-            let start = chunk * CHUNK;
-            // SAFETY: chunks are disjoint node ranges.
-            let velocities = unsafe { momentum.range(start..(start + CHUNK).min(len)) };
+        |unit| {
+            let range = blocks.range(unit);
+            let start = range.start;
+            // SAFETY: the units are disjoint node ranges.
+            let velocities = unsafe { momentum.range(range) };
             let (mut work, mut damped, mut friction) = (0.0, 0.0, 0.0);
             for (k, v) in velocities.iter_mut().enumerate() {
                 let i = start + k;
@@ -100,7 +99,7 @@ pub fn update_grid<const D: usize>(
                 }
                 *v /= m;
                 if params.flip {
-                    // SAFETY: node ranges of chunks are disjoint.
+                    // SAFETY: the units' node ranges are disjoint.
                     unsafe { *old_out.get(i) = *v };
                 }
                 if params.forces && params.flip {

@@ -31,7 +31,7 @@ mod mechanics_off;
 mod mode;
 mod multi_field;
 mod output_staging;
-mod parallel;
+pub(crate) mod parallel;
 mod particle_to_grid;
 mod quasi_static;
 mod run_loop;

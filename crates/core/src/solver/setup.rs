@@ -36,7 +36,7 @@ where
             min[d] -= pad as f64 * dx;
         }
         let flip = s.solver.transfer == Transfer::Flip;
-        let grid = Grid::new(min, cells, dx, flip);
+        let mut grid = Grid::new(min, cells, dx, flip);
 
         let reference = v.reference.as_ref().map(|r| r.start());
         let fbar = s.solver.anti_locking == crate::scene::AntiLocking::Fbar;
@@ -239,6 +239,7 @@ where
         let grid_nodes = grid.len();
         let contact =
             contact.map(|(_, _, laws)| MultiField::new(&grid, flip, K::SPAN, &field_counts, laws));
+        grid.set_sparse(s.solver.sparse_grid(contact.is_some()));
         Self {
             boundaries: Boundaries::new(&s.domain.walls, &s.obstacles, domain_cells),
             grid,

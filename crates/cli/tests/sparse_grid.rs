@@ -1,0 +1,157 @@
+//! The sparse grid (`solver.grid: "sparse"`, the default) against the dense one: the same
+//! particle states bit for bit (P2G adds the same terms in the same order and the grid update
+//! treats every node alike, so only the energy sums' grouping differs), with grid memory
+//! following the particles instead of the domain.
+
+mod common;
+
+use common::*;
+use mpm_core::output::Outcome;
+
+/// Runs `example` with `overrides` on a sparse and on a dense grid; returns the grid bytes of
+/// each after checking that every frame's positions and velocities agree bit for bit and the
+/// energy diagnostics to round-off.
+fn sparse_against_dense(example: &str, overrides: &[&str]) -> (usize, usize) {
+    let mut runs = Vec::new();
+    for grid in ["sparse", "dense"] {
+        let mut o: Vec<&str> = overrides.to_vec();
+        let storage = format!("solver.grid=\"{grid}\"");
+        o.push(&storage);
+        o.push("output.fields=[\"x\",\"v\"]");
+        let (m, frames) = run_fields(&load_example(example, &o), &["x", "v"]);
+        assert_eq!(
+            m.outcome,
+            Some(Outcome::Finished),
+            "{example} {grid}: {:?}",
+            m.diagnostic
+        );
+        runs.push((m, frames));
+    }
+    let ((sparse, fs), (dense, fd)) = (&runs[0], &runs[1]);
+    assert_eq!(sparse.steps, dense.steps, "{example}");
+    assert!(fs.times.len() >= 2, "{example}: frames");
+    for (k, name) in ["x", "v"].iter().enumerate() {
+        for (frame, (a, b)) in fs.values[k].iter().zip(&fd.values[k]).enumerate() {
+            let differ = a
+                .iter()
+                .zip(b)
+                .filter(|(x, y)| x.to_bits() != y.to_bits())
+                .count();
+            let worst = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            assert_eq!(
+                differ, 0,
+                "{example}: {name} of frame {frame} differs by up to {worst}"
+            );
+        }
+    }
+    for (a, b) in fs
+        .diagnostics
+        .iter()
+        .flatten()
+        .zip(fd.diagnostics.iter().flatten())
+    {
+        let scale = a.abs().max(b.abs()).max(1e-300);
+        assert!(
+            (a - b).abs() <= 1e-9 * scale || (a - b).abs() < 1e-12,
+            "{example}: diagnostic {a} against {b}"
+        );
+    }
+    println!(
+        "{example}: {} steps, grid bytes sparse {} dense {}",
+        sparse.steps, sparse.grid_bytes, dense.grid_bytes
+    );
+    (sparse.grid_bytes, dense.grid_bytes)
+}
+
+#[test]
+fn sparse_grid_gives_the_dense_results_bit_for_bit() {
+    // 3D, APIC with the MLS force, slip walls; the cube falls and lands.
+    let (sparse, dense) = sparse_against_dense(
+        "cube-drop.json",
+        &["domain.cell_size=0.03125", "solver.end_time=0.06"],
+    );
+    // The cube and its fall take a fraction of the box.
+    assert!(sparse * 2 < dense, "{sparse} against {dense}");
+    // 2D, stick wall (the fold and mirror of ghost nodes), gravity and damping.
+    sparse_against_dense("cantilever.json", &["solver.end_time=0.05"]);
+    // The other update schemes and FLIP, cubic B-splines and GIMP.
+    sparse_against_dense(
+        "vibrating-bar.json",
+        &[
+            "solver.end_time=0.05",
+            "solver.scheme=\"musl\"",
+            "solver.transfer=\"flip\"",
+        ],
+    );
+    sparse_against_dense(
+        "vibrating-bar.json",
+        &[
+            "solver.end_time=0.05",
+            "solver.scheme=\"usf\"",
+            "solver.kernel=\"bspline3\"",
+        ],
+    );
+    sparse_against_dense(
+        "vibrating-bar.json",
+        &["solver.end_time=0.05", "solver.kernel=\"gimp\""],
+    );
+    // 3D Johnson–Cook impact with symmetry walls (folded images), plastic heating.
+    sparse_against_dense("taylor-bar.json", &["solver.end_time=5e-6"]);
+    // Quasi-static relaxation.
+    sparse_against_dense("cantilever-static.json", &["solver.end_time=0.05"]);
+}
+
+/// 64 particles in a 1 m box at 1/520 m cells: a dense grid of 521³ nodes (4.5 GB) the
+/// scene limits refuse; the sparse grid takes a few blocks and the cube falls freely.
+#[test]
+fn a_few_particles_in_a_large_box_take_a_few_blocks() {
+    let scene = |grid: &str| {
+        serde_json::json!({
+            "name": "speck", "dimension": 3,
+            "domain": {"min": [0, 0, 0], "max": [1, 1, 1], "cell_size": 1.0 / 520.0,
+                       "walls": [{"sides": ["y-"], "condition": "stick"}]},
+            "solver": {"end_time": 0.01, "dt": 1e-4, "grid": grid, "gravity": [0, -9.81, 0]},
+            "materials": {"steel": {"type": "linear_elastic", "density": 7800.0,
+                "youngs_modulus": 2e5, "poisson_ratio": 0.3}},
+            "bodies": [{"material": "steel", "particles_per_cell": 2,
+                "shape": {"box": {"min": [0.5, 0.5, 0.5],
+                                  "max": [0.5 + 2.0 / 520.0, 0.5 + 2.0 / 520.0, 0.5 + 2.0 / 520.0]}}}],
+            "output": {"frames": 2, "fields": ["x"]}
+        })
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let dense = write_scene(dir.path(), "dense.json", &scene("dense"));
+    match mpm_cli::load_scene(&dense, &[], &mpm_cli::default_registry()) {
+        Err(mpm_cli::LoadError::Invalid(e)) => {
+            let text: Vec<String> = e.issues.iter().map(|i| i.to_string()).collect();
+            assert!(text.iter().any(|t| t.contains("grid_nodes")), "{text:?}");
+        }
+        Ok(_) => panic!("a dense grid of 521³ nodes was accepted"),
+        Err(mpm_cli::LoadError::Io(e)) => panic!("{e:#}"),
+    }
+    let sparse = write_scene(dir.path(), "sparse.json", &scene("sparse"));
+    let (m, frames) = run_fields(&load(&sparse, &[]), &["x"]);
+    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+    assert_eq!(m.particles, 64);
+    // A block is 512 nodes of 32 bytes; the 64 particles' stencils reach a few dozen.
+    println!("grid bytes: {}", m.grid_bytes);
+    assert!(m.grid_bytes < 4 << 20, "{} bytes", m.grid_bytes);
+    // Free fall: after n steps of symplectic Euler the mean height has dropped by
+    // g·dt²·n(n+1)/2 (the floor is far below), to round-off.
+    let y = |frame: usize| {
+        let x = &frames.values[0][frame];
+        x.chunks(3).map(|p| p[1]).sum::<f64>() / 64.0
+    };
+    let last = frames.times.len() - 1;
+    let n = (frames.times[last] / 1e-4).round();
+    let drop = y(0) - y(last);
+    let expected = 9.81 * 1e-8 * n * (n + 1.0) / 2.0;
+    assert!(
+        (drop - expected).abs() < 1e-9 * expected,
+        "dropped {drop} m in {n} steps, free fall {expected} m"
+    );
+}
