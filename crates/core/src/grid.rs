@@ -37,8 +37,8 @@ pub struct Grid<const D: usize> {
     pub velocity_old: PagedArray<Vector<D>>,
     /// The blocks in use, for a sparse grid (`None`: dense).
     activity: Option<GridActivity>,
-    /// Node ranges of one clear, reused.
-    clear_ranges: Vec<(Range<usize>, bool)>,
+    /// Node ranges released at once, reused.
+    clear_ranges: Vec<Range<usize>>,
 }
 
 /// Nodes per unit of a dense grid's parallel loops.
@@ -87,9 +87,9 @@ impl<const D: usize> Grid<D> {
         self.activity.is_some()
     }
 
-    /// Marks the blocks of nodes `range` as reached by a stencil in the coming step (a
-    /// sparse grid's binning does this for every particle before [`Grid::clear`]); nothing
-    /// for a dense grid. Thread-safe.
+    /// Marks the blocks of nodes `range` as written (a sparse grid's P2G does this for every
+    /// particle's stencil; [`Grid::take_marks`] then makes them the active ones); nothing for
+    /// a dense grid. Thread-safe.
     #[inline(always)]
     pub fn mark(&self, range: Range<usize>) {
         if let Some(activity) = &self.activity {
@@ -163,13 +163,13 @@ impl<const D: usize> Grid<D> {
         node_position(&self.origin, self.dx, ijk)
     }
 
-    /// Zeroes the arrays P2G accumulates into. A sparse grid starts a step here: the
-    /// blocks marked since the last clear become the active ones; blocks no longer reached
-    /// give their memory back.
+    /// Zeroes the arrays P2G accumulates into. A sparse grid zeroes its active blocks (those
+    /// the last transfers wrote): every other node is zero already.
     pub fn clear(&mut self) {
         use rayon::prelude::*;
         const CHUNK: usize = 1 << 14;
-        let Some(activity) = &mut self.activity else {
+        self.take_marks();
+        let Some(activity) = &self.activity else {
             self.mass.par_chunks_mut(CHUNK).for_each(|c| c.fill(0.0));
             self.momentum
                 .par_chunks_mut(CHUNK)
@@ -179,25 +179,53 @@ impl<const D: usize> Grid<D> {
                 .for_each(|c| c.fill(Vector::<D>::zeros()));
             return;
         };
-        // Blocks no longer reached give their pages back, consecutive ones in one call; the
-        // blocks still reached are zeroed in parallel.
+        // The blocks written since the last clear are this step's active ones: zero them in
+        // parallel.
+        let blocks = NodeBlocks {
+            activity: Some(activity),
+            len: self.mass.len(),
+        };
+        let flip = !self.force.is_empty();
+        let zero = Vector::<D>::zeros();
+        let mass = SharedSlice::new(&mut self.mass);
+        let momentum = SharedSlice::new(&mut self.momentum);
+        let force = SharedSlice::new(&mut self.force);
+        (0..blocks.count()).into_par_iter().for_each(|k| {
+            let range = blocks.range(k);
+            // SAFETY: the blocks are distinct, so no two tasks touch one node.
+            unsafe {
+                mass.range(range.clone()).fill(0.0);
+                momentum.range(range.clone()).fill(zero);
+                if flip {
+                    force.range(range).fill(zero);
+                }
+            }
+        });
+    }
+
+    /// On a sparse grid, after a transfer: the blocks it marked become the active ones, and
+    /// the blocks active before but not written now (zero since the clear) give their pages
+    /// back. Nothing on a dense grid, or when nothing was marked since the last call.
+    pub fn take_marks(&mut self) {
+        let Some(activity) = &mut self.activity else {
+            return;
+        };
+        if !activity.has_marks() {
+            return;
+        }
         let ranges = &mut self.clear_ranges;
         ranges.clear();
-        if !activity.has_marks() {
-            // A second clear within the step (USF): the same blocks, zeroed.
-            let blocks = NodeBlocks {
-                activity: Some(&*activity),
-                len: self.mass.len(),
-            };
-            ranges.extend((0..blocks.count()).map(|k| (blocks.range(k), true)));
-        } else {
-            activity.begin_step(|range, keep| match ranges.last_mut() {
-                Some((last, false)) if !keep && last.end == range.start => last.end = range.end,
-                _ => ranges.push((range, keep)),
-            });
-        }
+        activity.begin_step(|range, kept| {
+            if kept {
+                return;
+            }
+            match ranges.last_mut() {
+                Some(last) if last.end == range.start => last.end = range.end,
+                _ => ranges.push(range),
+            }
+        });
         let flip = !self.force.is_empty();
-        for (range, _) in self.clear_ranges.iter().filter(|(_, keep)| !keep) {
+        for range in &self.clear_ranges {
             self.mass.release(range.clone());
             self.momentum.release(range.clone());
             if flip {
@@ -205,23 +233,6 @@ impl<const D: usize> Grid<D> {
                 self.velocity_old.release(range.clone());
             }
         }
-        let zero = Vector::<D>::zeros();
-        let mass = SharedSlice::new(&mut self.mass);
-        let momentum = SharedSlice::new(&mut self.momentum);
-        let force = SharedSlice::new(&mut self.force);
-        self.clear_ranges
-            .par_iter()
-            .filter(|(_, keep)| *keep)
-            .for_each(|(range, _)| {
-                // SAFETY: the ranges are distinct blocks, so no two tasks touch one node.
-                unsafe {
-                    mass.range(range.clone()).fill(0.0);
-                    momentum.range(range.clone()).fill(zero);
-                    if flip {
-                        force.range(range.clone()).fill(zero);
-                    }
-                }
-            });
     }
 
     /// Zeroes the momentum of every node in use (MUSL's second transfer keeps the mass).

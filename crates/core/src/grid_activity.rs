@@ -1,7 +1,8 @@
 //! Which parts of the grid are in use: the grid's nodes, in their x-major order, are cut into
-//! blocks of [`BLOCK_NODES`] consecutive nodes; a block is active in a step when a particle's
-//! stencil reaches one of its nodes. Only active blocks are cleared, updated and kept in
-//! memory, so the work and memory of the grid follow the particles, not the domain.
+//! blocks of [`BLOCK_NODES`] consecutive nodes; a block is active in a step when P2G writes
+//! one of its nodes (it marks the blocks of every particle's stencil). Only active blocks are
+//! updated, cleared and kept in memory, so the work and memory of the grid follow the
+//! particles, not the domain.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -11,10 +12,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 pub const BLOCK_NODES: usize = 512;
 
 /// The most blocks one particle's stencil marks: a range of at most two blocks per row of
-/// the widest kernel (`binning.rs`).
+/// the widest kernel (`mark_stencil` in `solver/particle_to_grid.rs`).
 pub const MAX_BLOCKS_PER_PARTICLE: usize = 2 * crate::kernels::MAX_SPAN * crate::kernels::MAX_SPAN;
 
-/// The active blocks of a sparse grid: those of this step, and the marks made for the next.
+/// The active blocks of a sparse grid, and the marks of the transfer under way.
 pub struct GridActivity {
     /// Bit per block: marked by a stencil since the last [`GridActivity::begin_step`].
     marks: Vec<AtomicU64>,
@@ -62,16 +63,15 @@ impl GridActivity {
         }
     }
 
-    /// Whether blocks were marked since the last [`Self::begin_step`] (a transfer after the
-    /// grid was cleared once this step, as USF's second, marks nothing and keeps the set).
+    /// Whether blocks were marked since the last [`Self::begin_step`].
     pub fn has_marks(&self) -> bool {
         self.pending.load(Ordering::Relaxed)
     }
 
-    /// Starts a step: the marked blocks become the active ones and the marks are reset.
-    /// Calls `f(range, true)` for the node range of every block active before and now (to
-    /// be zeroed) and `f(range, false)` for every block active before but not now (to be
-    /// released), in ascending order.
+    /// The marked blocks become the active ones and the marks are reset. Calls
+    /// `f(range, true)` for the node range of every block active before and now and
+    /// `f(range, false)` for every block active before but not now (to be released), in
+    /// ascending order.
     pub fn begin_step(&mut self, mut f: impl FnMut(Range<usize>, bool)) {
         self.pending.store(false, Ordering::Relaxed);
         let mut next = std::mem::take(&mut self.active);

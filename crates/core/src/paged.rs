@@ -92,9 +92,9 @@ impl<T: Zeroable> PagedArray<T> {
         self[range].fill(zero);
     }
 
-    /// Writes zeros over bytes `from..to` (whole elements: both ends are element
-    /// boundaries or page boundaries inside a released range, which the caller took care
-    /// of by rounding to pages of zeros).
+    /// Writes zeros over bytes `from..to` of the array (an element cut by a page boundary
+    /// inside a released range gets its bytes on one side here, on the other from the
+    /// released page).
     fn zero_bytes(&mut self, from: usize, to: usize) {
         if from < to {
             // SAFETY: in bounds of the mapping (from < to <= len·size); zero bytes are a valid

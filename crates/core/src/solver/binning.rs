@@ -2,8 +2,7 @@
 //! occasional reordering of particles by cell for memory locality.
 
 use crate::grid::Grid;
-use crate::grid_activity::BLOCK_NODES;
-use crate::kernels::{Kernel, MAX_SPAN};
+use crate::kernels::Kernel;
 use crate::math::Vector;
 use crate::particles::Particles;
 use rayon::prelude::*;
@@ -43,32 +42,19 @@ impl SlabBins {
     pub fn rebuild<const D: usize, K: Kernel>(&mut self, grid: &Grid<D>, particles: &Particles<D>) {
         let width = self.width;
         let slabs = self.slab_count();
-        let (origin, inv_dx) = (grid.origin, grid.inv_dx);
-        let sparse = grid.is_sparse();
-        const CHUNK: usize = super::parallel::PARTICLE_CHUNK;
+        let (origin, inv_dx) = (grid.origin[0], grid.inv_dx);
         self.slab_of
-            .par_chunks_mut(CHUNK)
+            .par_iter_mut()
+            .zip(particles.position.par_iter())
             .enumerate()
-            .for_each(|(chunk, slabs_out)| {
-                let mut recent = [(usize::MAX, usize::MAX); MAX_SPAN];
-                for (k, slab) in slabs_out.iter_mut().enumerate() {
-                    let p = chunk * CHUNK + k;
-                    let x = &particles.position[p];
-                    let half = if K::USES_PARTICLE_SIZE {
-                        particles.half_size[p]
-                    } else {
-                        0.0
-                    };
-                    let mut base = [0usize; 3];
-                    for d in 0..if sparse { D } else { 1 } {
-                        base[d] =
-                            K::weights((x[d] - origin[d]) * inv_dx, half).base.max(0) as usize;
-                    }
-                    *slab = (base[0] / width).min(slabs - 1) as u32;
-                    if sparse {
-                        mark_stencil::<D, K>(grid, base, &mut recent);
-                    }
-                }
+            .for_each(|(p, (slab, x))| {
+                let half = if K::USES_PARTICLE_SIZE {
+                    particles.half_size[p]
+                } else {
+                    0.0
+                };
+                let base = K::weights((x[0] - origin) * inv_dx, half).base.max(0) as usize;
+                *slab = (base / width).min(slabs - 1) as u32;
             });
         self.start.fill(0);
         for &s in &self.slab_of {
@@ -104,38 +90,6 @@ impl SlabBins {
             }
             for (f, bins) in out.iter_mut().enumerate() {
                 bins.start[s + 1] = filled[f];
-            }
-        }
-    }
-}
-
-/// Tells a sparse grid which blocks the stencil with first node `base` reaches. The rows of
-/// the stencil (along z, or along y in 2D) are runs of `K::SPAN` nodes; where rows lie
-/// within a block of each other, one range per x-plane from its first row to the end of
-/// its last covers them (the nodes between rows add no block that a row does not hold), else
-/// each row is marked. At most `2·K::SPAN²` blocks per particle
-/// ([`crate::grid_activity::MAX_BLOCKS_PER_PARTICLE`]). `recent` holds the block spans last marked: neighbouring
-/// particles mostly mark the same, and skip them.
-#[inline(always)]
-fn mark_stencil<const D: usize, K: Kernel>(
-    grid: &Grid<D>,
-    base: [usize; 3],
-    recent: &mut [(usize, usize); MAX_SPAN],
-) {
-    let (first, stride, span) = (grid.index(base), grid.stride, K::SPAN);
-    // Rows far apart (long z lines) are marked one by one.
-    let (rows, length, step) = match D {
-        3 if stride[1] >= BLOCK_NODES => (span, span, stride[1]),
-        3 => (1, (span - 1) * stride[1] + span, 0),
-        _ => (1, span, 0),
-    };
-    for a in 0..span {
-        for b in 0..rows {
-            let start = first + a * stride[0] + b * step;
-            let blocks = (start / BLOCK_NODES, (start + length - 1) / BLOCK_NODES);
-            if !recent.contains(&blocks) {
-                grid.mark(start..start + length);
-                recent[(a * rows + b) % MAX_SPAN] = blocks;
             }
         }
     }

@@ -69,6 +69,8 @@ pub fn update_grid<const D: usize>(
     boundaries: &Boundaries<D>,
     params: GridParams<D>,
 ) -> GridWork {
+    // A sparse grid's active blocks are those the transfer just wrote.
+    grid.take_marks();
     boundaries.fold_stick_walls(grid);
     let damping = (-params.damping * params.dt).exp();
     let (origin, dx, stride) = (grid.origin, grid.dx, grid.stride);

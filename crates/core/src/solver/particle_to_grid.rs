@@ -10,6 +10,7 @@ use super::parallel::SharedSlice;
 use super::separable::{Scatter, scatter};
 use super::stencil::Stencil;
 use crate::grid::Grid;
+use crate::grid_activity::BLOCK_NODES;
 use crate::kernels::Kernel;
 use crate::math::{Matrix, Vector, determinant};
 use crate::particles::Particles;
@@ -46,7 +47,46 @@ pub(crate) struct P2gParams<const D: usize> {
     pub gravity: Vector<D>,
 }
 
-/// Scatters particle quantities onto the (cleared) grid.
+/// Tells a sparse grid which blocks the stencil with first node `first` writes. The rows of
+/// the stencil (along z, or along y in 2D) are runs of `K::SPAN` nodes; where rows lie
+/// within a block of each other, one range per x-plane from its first row to the end of
+/// its last covers them (the nodes between rows add no block that a row does not hold), else
+/// each row is marked. At most `2·K::SPAN²` blocks per particle
+/// ([`crate::grid_activity::MAX_BLOCKS_PER_PARTICLE`]). `recent` holds blocks this task has
+/// marked (direct-mapped): neighbouring particles mostly write the same blocks, and skip
+/// the atomic marks.
+#[inline(always)]
+fn mark_stencil<const D: usize, K: Kernel>(
+    grid: &Grid<D>,
+    first: usize,
+    recent: &mut [usize; RECENT_BLOCKS],
+) {
+    let (stride, span) = (grid.stride, K::SPAN);
+    // Rows far apart (long z lines) are marked one by one.
+    let (rows, length, step) = match D {
+        3 if stride[1] >= BLOCK_NODES => (span, span, stride[1]),
+        3 => (1, (span - 1) * stride[1] + span, 0),
+        _ => (1, span, 0),
+    };
+    for a in 0..span {
+        for b in 0..rows {
+            let start = first + a * stride[0] + b * step;
+            let (lo, hi) = (start / BLOCK_NODES, (start + length - 1) / BLOCK_NODES);
+            if recent[lo % RECENT_BLOCKS] != lo || recent[hi % RECENT_BLOCKS] != hi {
+                grid.mark(start..start + length);
+                recent[lo % RECENT_BLOCKS] = lo;
+                recent[hi % RECENT_BLOCKS] = hi;
+            }
+        }
+    }
+}
+
+/// Blocks one P2G task remembers having marked (direct-mapped by block number): a slab's
+/// particles write a few dozen blocks.
+const RECENT_BLOCKS: usize = 64;
+
+/// Scatters particle quantities onto the (cleared) grid; on a sparse grid, marks the blocks
+/// it writes ([`Grid::take_marks`] makes them the step's active ones).
 pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
     grid: &mut Grid<D>,
     particles: &Particles<D>,
@@ -60,11 +100,13 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
     let momentum_out = SharedSlice::new(&mut grid.momentum);
     let force_out = SharedSlice::new(&mut grid.force);
     let grid = &*grid;
+    let sparse = grid.is_sparse();
     for colour in 0..2 {
         (0..bins.slab_count())
             .into_par_iter()
             .filter(|s| s % 2 == colour)
             .for_each(|slab| {
+                let mut recent = [usize::MAX; RECENT_BLOCKS];
                 for &p in bins.slab(slab) {
                     let p = p as usize;
                     let x = particles.position[p];
@@ -74,6 +116,9 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
                         0.0
                     };
                     let stencil = Stencil::<D>::new::<K>(grid, &x, half);
+                    if sparse {
+                        mark_stencil::<D, K>(grid, stencil.base_index, &mut recent);
+                    }
                     let m = particles.mass[p];
                     let mut mv = particles.velocity[p] * m;
                     let mut weight = Vector::<D>::zeros();
