@@ -243,6 +243,54 @@ fn unmap(_ptr: *mut u8, _bytes: usize) {}
 mod tests {
     use super::*;
 
+    /// Pages of the array the kernel holds in memory (mincore), Linux only.
+    #[cfg(target_os = "linux")]
+    fn resident_pages<T: Zeroable>(a: &PagedArray<T>) -> usize {
+        let page = page_size();
+        let pages = a.mapped.div_ceil(page);
+        let mut flags = vec![0u8; pages];
+        // SAFETY: the range is our own mapping; flags has one byte per page.
+        let rc = unsafe { libc::mincore(a.ptr.cast(), a.mapped, flags.as_mut_ptr().cast()) };
+        assert_eq!(rc, 0);
+        flags.iter().filter(|&&f| f & 1 != 0).count()
+    }
+
+    /// Memory is taken where the array is written and given back where it is released:
+    /// what lets a sparse grid's memory follow its particles.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn memory_follows_writes_and_releases() {
+        let page = page_size();
+        // 64 MiB of address space.
+        let n = (64 << 20) / 8;
+        let mut a = PagedArray::<f64>::zeroed(n);
+        assert!(a.mapped > 0, "not a mapping");
+        // Reading takes nothing.
+        assert_eq!(a.iter().step_by(4096).sum::<f64>(), 0.0);
+        let before = resident_pages(&a);
+        // Write one element in each of 100 pages spread over the array.
+        let per_page = page / 8;
+        for k in 0..100 {
+            a[k * (n / 100) + 3] = 1.0;
+        }
+        let written = resident_pages(&a);
+        // Transparent huge pages may back a write with more than one page; without them
+        // exactly 100 pages.
+        assert!(written >= 100, "{written} pages after 100 writes");
+        assert!(
+            written - before < n / per_page / 4,
+            "{written} of {} pages",
+            n / per_page
+        );
+        a.release(0..n);
+        assert!(
+            resident_pages(&a) <= before,
+            "{} pages after release",
+            resident_pages(&a)
+        );
+        assert!(a.iter().all(|&v| v == 0.0));
+    }
+
     #[test]
     fn released_ranges_read_zero_and_the_rest_is_kept() {
         let n = 100_000;

@@ -121,15 +121,15 @@ impl GridStorage {
 
 impl Solver {
     /// Whether a run keeps its grid sparse: `solver.grid` asks for it and every grid write
-    /// of the mode comes from a stencil the binning announced, as in explicit dynamics and
-    /// quasi-static relaxation without contact fields (projection, Newton and contact
-    /// operators write anywhere on the grid).
+    /// of the mode comes from P2G, which marks the blocks it writes, as in explicit dynamics
+    /// and quasi-static relaxation without contact fields (projection, Newton and contact
+    /// operators write anywhere on the grid); with mechanics off nothing writes it.
     pub fn sparse_grid(&self, contact: bool) -> bool {
         self.grid.is_sparse()
             && !contact
             && matches!(
                 self.mechanics,
-                Mechanics::Dynamic | Mechanics::QuasiStatic { .. }
+                Mechanics::Dynamic | Mechanics::QuasiStatic { .. } | Mechanics::Off
             )
     }
 }

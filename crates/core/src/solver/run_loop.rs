@@ -465,6 +465,12 @@ where
             stage_seconds: self.clock.figures(),
             grid_bytes: self.grid.bytes()
                 + self.volume_average.as_ref().map_or(0, VolumeAverage::bytes)
+                + self
+                    .physics
+                    .iter()
+                    .flat_map(|slot| &slot.scratch)
+                    .map(|a| a.capacity() * 8)
+                    .sum::<usize>()
                 + self.contact.as_ref().map_or(0, MultiField::bytes),
             energy_drift: drift,
             max_energy_drift: max_drift,
