@@ -39,6 +39,8 @@ pub struct Grid<const D: usize> {
     activity: Option<GridActivity>,
     /// Node ranges released at once, reused.
     clear_ranges: Vec<Range<usize>>,
+    /// Whether the grid was cleared since the marks were last taken.
+    cleared: bool,
 }
 
 /// Nodes per unit of a dense grid's parallel loops.
@@ -67,6 +69,7 @@ impl<const D: usize> Grid<D> {
             velocity_old: PagedArray::zeroed(extra),
             activity: None,
             clear_ranges: Vec::new(),
+            cleared: true,
         }
     }
 
@@ -80,6 +83,7 @@ impl<const D: usize> Grid<D> {
         }
         self.mass.release(0..len);
         self.activity = sparse.then(|| GridActivity::new(len));
+        self.cleared = true;
     }
 
     /// Whether the grid is sparse.
@@ -179,6 +183,7 @@ impl<const D: usize> Grid<D> {
                 .for_each(|c| c.fill(Vector::<D>::zeros()));
             return;
         };
+        self.cleared = true;
         // The blocks written since the last clear are this step's active ones: zero them in
         // parallel.
         let blocks = NodeBlocks {
@@ -205,7 +210,8 @@ impl<const D: usize> Grid<D> {
 
     /// On a sparse grid, after a transfer: the blocks it marked become the active ones, and
     /// the blocks active before but not written now (zero since the clear) give their pages
-    /// back. Nothing on a dense grid, or when nothing was marked since the last call.
+    /// back; after a transfer that followed no clear, its blocks join those in use. Nothing
+    /// on a dense grid, or when nothing was marked since the last call.
     pub fn take_marks(&mut self) {
         let Some(activity) = &mut self.activity else {
             return;
@@ -213,9 +219,12 @@ impl<const D: usize> Grid<D> {
         if !activity.has_marks() {
             return;
         }
+        // After a clear the marks are the step's blocks; without one (MUSL's second
+        // transfer) they join the blocks already in use, whose mass is still there.
+        let replace = std::mem::take(&mut self.cleared);
         let ranges = &mut self.clear_ranges;
         ranges.clear();
-        activity.begin_step(|range, kept| {
+        activity.begin_step(replace, |range, kept| {
             if kept {
                 return;
             }

@@ -68,19 +68,22 @@ impl GridActivity {
         self.pending.load(Ordering::Relaxed)
     }
 
-    /// The marked blocks become the active ones and the marks are reset. Calls
-    /// `f(range, true)` for the node range of every block active before and now and
-    /// `f(range, false)` for every block active before but not now (to be released), in
-    /// ascending order.
-    pub fn begin_step(&mut self, mut f: impl FnMut(Range<usize>, bool)) {
+    /// The marked blocks become the active ones and the marks are reset. With `replace`, the
+    /// blocks active before and not marked now drop out: calls `f(range, true)` for the node
+    /// range of every block active before and now and `f(range, false)` for every block
+    /// active before but not now (to be released), in ascending order. Without, the marked
+    /// blocks join those active (a second transfer in a step whose grid was not cleared
+    /// since: MUSL's) and `f` is not called.
+    pub fn begin_step(&mut self, replace: bool, mut f: impl FnMut(Range<usize>, bool)) {
         self.pending.store(false, Ordering::Relaxed);
         let mut next = std::mem::take(&mut self.active);
         next.clear();
         for w in 0..self.marks.len() {
-            let now = self.marks[w].swap(0, Ordering::Relaxed);
+            let marked = self.marks[w].swap(0, Ordering::Relaxed);
             let before = self.active_bits[w];
+            let now = if replace { marked } else { marked | before };
             self.active_bits[w] = now;
-            let mut touched = before;
+            let mut touched = if replace { before } else { 0 };
             while touched != 0 {
                 let bit = touched.trailing_zeros() as usize;
                 f(self.block_range(w * 64 + bit), now & (1 << bit) != 0);
@@ -156,7 +159,7 @@ mod tests {
         a.mark(BLOCK_NODES - 1..BLOCK_NODES + 1);
         a.mark(10 * BLOCK_NODES..10 * BLOCK_NODES + 3);
         let mut seen = Vec::new();
-        a.begin_step(|r, keep| seen.push((r, keep)));
+        a.begin_step(true, |r, keep| seen.push((r, keep)));
         assert!(seen.is_empty());
         assert_eq!(a.active_blocks(), 3);
         assert_eq!(a.active_range(2), 10 * BLOCK_NODES..10 * BLOCK_NODES + 7);
@@ -164,7 +167,7 @@ mod tests {
         // Next step only block 1 and block 5.
         a.mark(BLOCK_NODES + 4..BLOCK_NODES + 5);
         a.mark(5 * BLOCK_NODES..5 * BLOCK_NODES + 1);
-        a.begin_step(|r, keep| seen.push((r, keep)));
+        a.begin_step(true, |r, keep| seen.push((r, keep)));
         assert_eq!(
             seen,
             vec![
