@@ -100,18 +100,17 @@ impl GridActivity {
     }
 
     /// Makes the block of `node` active in this step (a wall's fold writing in front of
-    /// nodes no stencil reached); returns whether it was inactive (and so holds zeros).
-    pub fn activate(&mut self, node: usize) -> bool {
+    /// nodes no stencil reached; an inactive block holds zeros).
+    pub fn activate(&mut self, node: usize) {
         let block = node / BLOCK_NODES;
         let (word, bit) = (block / 64, 1u64 << (block % 64));
         if self.active_bits[word] & bit != 0 {
-            return false;
+            return;
         }
         self.active_bits[word] |= bit;
         let at = self.active.partition_point(|&b| (b as usize) < block);
         self.active.insert(at, block as u32);
         self.peak = self.peak.max(self.active.len());
-        true
     }
 
     /// Whether `node` lies in an active block this step.
@@ -176,12 +175,32 @@ mod tests {
                 (10 * BLOCK_NODES..10 * BLOCK_NODES + 7, false)
             ]
         );
-        assert!(a.activate(3 * BLOCK_NODES + 1));
-        assert!(!a.activate(3 * BLOCK_NODES + 2));
-        let order: Vec<_> = (0..a.active_blocks())
-            .map(|k| a.active_range(k).start)
-            .collect();
-        assert_eq!(order, vec![BLOCK_NODES, 3 * BLOCK_NODES, 5 * BLOCK_NODES]);
+        a.activate(3 * BLOCK_NODES + 1);
+        a.activate(3 * BLOCK_NODES + 2);
+        let starts = |a: &GridActivity| -> Vec<usize> {
+            (0..a.active_blocks())
+                .map(|k| a.active_range(k).start)
+                .collect()
+        };
+        assert_eq!(
+            starts(&a),
+            vec![BLOCK_NODES, 3 * BLOCK_NODES, 5 * BLOCK_NODES]
+        );
         assert_eq!(a.peak_blocks(), 3);
+        // A second transfer without a clear (MUSL's) adds its blocks and drops none.
+        a.mark(7 * BLOCK_NODES..7 * BLOCK_NODES + 1);
+        seen.clear();
+        a.begin_step(false, |r, keep| seen.push((r, keep)));
+        assert!(seen.is_empty());
+        assert_eq!(
+            starts(&a),
+            vec![
+                BLOCK_NODES,
+                3 * BLOCK_NODES,
+                5 * BLOCK_NODES,
+                7 * BLOCK_NODES
+            ]
+        );
+        assert_eq!(a.peak_blocks(), 4);
     }
 }

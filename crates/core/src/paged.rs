@@ -102,11 +102,6 @@ impl<T: Zeroable> PagedArray<T> {
             unsafe { std::ptr::write_bytes(self.ptr.cast::<u8>().add(from), 0, to - from) };
         }
     }
-
-    /// Bytes the array spans (its address space, not the memory it has taken).
-    pub fn span_bytes(&self) -> usize {
-        self.len * std::mem::size_of::<T>()
-    }
 }
 
 /// The zero value of a [`Zeroable`] type.

@@ -92,7 +92,8 @@ pub struct Solver {
     pub free_strain_2d: FreeStrain2d,
     /// How the grid is stored: `sparse` (the default) keeps, clears and updates only the
     /// blocks of nodes the particles' stencils reach, where the mode allows it (explicit
-    /// dynamics and quasi-static relaxation without contact); `dense` every node, always.
+    /// dynamics, quasi-static relaxation or mechanics off, without contact); `dense` every
+    /// node, always.
     #[serde(default, skip_serializing_if = "GridStorage::is_sparse")]
     pub grid: GridStorage,
     /// How mechanics advances: explicit dynamics (the default), not at all (physics only,

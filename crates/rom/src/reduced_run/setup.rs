@@ -101,8 +101,8 @@ where
         options: &RunOptions,
     ) -> Result<Self, RomError> {
         let mut sim = sim;
-        // The reduced step scatters onto the grid itself, without the binning that tells a
-        // sparse grid which blocks are in use: it keeps the grid dense.
+        // The reduced step scatters onto the grid itself, without the P2G that marks a
+        // sparse grid's blocks in use: it keeps the grid dense.
         sim.grid.set_sparse(false);
         let s = &scene.scene;
         let n = sim.particles.len();
