@@ -23,23 +23,29 @@ fn the_summary_is_the_average_of_the_stored_stress() {
     let store = dir.path().join("r.zarr");
     let scene = load_example(
         EXAMPLE,
-        &[r#"output.fields=["x","stress","volume","material"]"#],
+        &[r#"output.fields=["x","stress","stress_zz","volume","material"]"#],
     );
     let m = run_to_store(&scene, &store);
     let summary = cycles(&m);
     let s = ResultStore::open_stage(&store, Some("cycles")).unwrap();
     let last = s.frame_count().unwrap() - 1;
     let field = |name: &str| s.frame(name, last).unwrap().1;
-    let (x, stress, volume, material) = (
+    let (x, stress, zz, volume, material) = (
         field("x"),
         field("stress"),
+        field("stress_zz"),
         field("volume"),
         field("material"),
     );
     let radius = 5e-5;
+    // Plane strain: σzz counts.
     let vm: Vec<f64> = stress
         .chunks_exact(4)
-        .map(|s| (s[0] * s[0] - s[0] * s[3] + s[3] * s[3] + 3.0 * s[1] * s[1]).sqrt())
+        .zip(&zz)
+        .map(|(s, &z)| {
+            let (xx, yy, xy) = (s[0], s[3], s[1]);
+            (0.5 * ((xx - yy).powi(2) + (yy - z).powi(2) + (z - xx).powi(2)) + 3.0 * xy * xy).sqrt()
+        })
         .collect();
     // Materials in scene order: silicon, substrate, underfill.
     for (index, name) in ["silicon", "substrate", "underfill"].iter().enumerate() {
@@ -72,9 +78,12 @@ fn the_summary_is_the_average_of_the_stored_stress() {
 
 #[test]
 fn the_averaged_underfill_stress_converges_where_the_peak_does_not() {
-    // Measured after the third cycle, 25 → 12.5 µm cells: underfill peak 104.1 → 148.7 MPa
-    // (6.25 µm: 234.0), averaged over 50 µm 88.7 → 87.4 MPa (87.1). Bounds: the average
-    // within 3%, the peak up by at least 20%.
+    // Measured after the third cycle, 25 → 12.5 µm cells, generalized plane strain with σzz
+    // in the von Mises stress (stop 50): underfill peak 111.3 → 156.9 MPa (6.25 µm: 224.7),
+    // averaged over 50 µm 83.4 → 87.8 MPa (91.4): +5.3% then +4.1%, converging slowly.
+    // Before, with σzz left out of the figure, 88.7 → 87.4 (87.1) and a 3% bound; the bound
+    // is now 1.5 times the measured step, and the average must move less than a quarter of
+    // the peak's move.
     let coarse = run(&load_example(EXAMPLE, &[]));
     let fine = run(&load_example(EXAMPLE, &["domain.cell_size=1.25e-5"]));
     let (c, f) = (cycles(&coarse), cycles(&fine));
@@ -87,8 +96,13 @@ fn the_averaged_underfill_stress_converges_where_the_peak_does_not() {
         average(c) / 1e6,
         average(f) / 1e6
     );
-    assert!((average(f) / average(c) - 1.0).abs() < 0.03);
-    assert!(peak(f) / peak(c) > 1.2);
+    let (average_step, peak_step) = (average(f) / average(c) - 1.0, peak(f) / peak(c) - 1.0);
+    assert!(average_step.abs() < 0.08, "average moved {average_step}");
+    assert!(peak_step > 0.2, "peak moved {peak_step}");
+    assert!(
+        average_step.abs() < 0.25 * peak_step,
+        "average {average_step}, peak {peak_step}"
+    );
 }
 
 #[test]

@@ -131,8 +131,9 @@ fn scenes_allocate_only_what_they_need() {
         "vibrating-bar.json",
         &["reference=null"],
     ));
-    // 2D: position, velocity (2×8 each), mass, volume (8 each), F, stress (4×8 each), id (4).
-    let base = 2.0 * 16.0 + 2.0 * 8.0 + 2.0 * 32.0 + 4.0;
+    // 2D: position, velocity (2×8 each), mass, volume, σzz (8 each), F, stress (4×8 each),
+    // id (4).
+    let base = 2.0 * 16.0 + 3.0 * 8.0 + 2.0 * 32.0 + 4.0;
     assert_eq!(pic, base, "PIC allocates exactly the core fields");
     // APIC adds the affine matrix and nothing else: no plugin fields for elastic materials.
     assert_eq!(apic, base + 32.0);

@@ -95,6 +95,14 @@ pub struct StressBatch<'a, const D: usize> {
     pub volume0: &'a [f64],
     /// Cauchy stress, written by the material.
     pub stress: &'a mut [Matrix<D>],
+    /// In 2D (plane strain), each particle's mechanical stretch across the plane, F_zz:
+    /// 1/(1 + e) where a free strain e acts across the plane too
+    /// (`solver.free_strain_2d: "plane_strain"`). Empty means 1 (3D, or no free strain
+    /// across the plane); read it with [`out_of_plane_stretch`].
+    pub out_of_plane_stretch: &'a [f64],
+    /// In 2D (plane strain), where a law that says [`ConstitutiveLaw::plane_strain_stress`]
+    /// writes σzz, the stress the held third direction carries; empty in 3D.
+    pub out_of_plane_stress: &'a mut [f64],
     /// The material's own per-particle state.
     pub state: StateSlices<'a>,
     /// The shared fields the material declared in [`ConstitutiveLaw::shared_reads`], in that
@@ -116,6 +124,9 @@ pub struct TangentBatch<'a, const D: usize> {
     pub direction: &'a [Matrix<D>],
     /// Cauchy stress at `deformation_gradient`.
     pub stress: &'a [Matrix<D>],
+    /// The stretch across the plane the stress was computed with, as in
+    /// [`StressBatch::out_of_plane_stretch`] (held fixed: δF has no zz part).
+    pub out_of_plane_stretch: &'a [f64],
     /// The law's state at the start of the step, i.e. the state `update_stress` started
     /// from to reach `stress` (a path-dependent law differentiates its return map from it).
     pub state: StateView<'a>,
@@ -243,6 +254,22 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
     fn plane_strain_expansion(&self) -> f64 {
         1.0
     }
+    /// Whether the law, in 2D, is its 3D law at F = [[F, 0], [0, F_zz]]: it reads the stretch
+    /// [`StressBatch::out_of_plane_stretch`] (and [`TangentBatch::out_of_plane_stretch`])
+    /// and writes σzz to [`StressBatch::out_of_plane_stress`]. Then a free strain with
+    /// `solver.free_strain_2d: "plane_strain"` reaches the law as that stretch (exact plane
+    /// strain for any law) instead of scaled by [`ConstitutiveLaw::plane_strain_expansion`]
+    /// in the plane. False, the default: σzz reads 0 and the scaling stands in.
+    fn plane_strain_stress(&self) -> bool {
+        false
+    }
+}
+
+/// Particle `k`'s stretch across the plane from [`StressBatch::out_of_plane_stretch`]:
+/// 1 where the slice is empty.
+#[inline]
+pub fn out_of_plane_stretch(stretch: &[f64], k: usize) -> f64 {
+    stretch.get(k).copied().unwrap_or(1.0)
 }
 
 /// Object-safe form of [`ConstitutiveLaw`]; implemented for every law, used by the solver.
@@ -283,6 +310,8 @@ pub trait Material: Send + Sync {
     fn liquid_viscosities_3d(&self, batch: ViscosityBatch<'_, 3>);
     /// See [`ConstitutiveLaw::plane_strain_expansion`].
     fn plane_strain_expansion(&self) -> f64;
+    /// See [`ConstitutiveLaw::plane_strain_stress`].
+    fn plane_strain_stress(&self) -> bool;
 }
 
 impl<T: ConstitutiveLaw> Material for T {
@@ -339,6 +368,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn plane_strain_expansion(&self) -> f64 {
         ConstitutiveLaw::plane_strain_expansion(self)
+    }
+    fn plane_strain_stress(&self) -> bool {
+        ConstitutiveLaw::plane_strain_stress(self)
     }
 }
 

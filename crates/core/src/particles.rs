@@ -19,6 +19,10 @@ pub struct MaterialGroup {
     /// The factor the stress update applies to the free strain in the plane (1, or the
     /// law's plane-strain expansion with `solver.free_strain_2d: "plane_strain"`).
     pub free_strain_factor: f64,
+    /// Whether the free strain also stretches this group's particles across the plane (2D
+    /// with `solver.free_strain_2d: "plane_strain"` and a law that says
+    /// `plane_strain_stress`); then `free_strain_factor` is 1.
+    pub free_strain_across_plane: bool,
     /// The law's declared state fields for this group's particles, one `Vec` per field
     /// (`components` numbers per particle).
     pub state: Vec<Vec<f64>>,
@@ -38,6 +42,9 @@ pub struct Particles<const D: usize> {
     pub deformation_gradient: Vec<Matrix<D>>,
     /// Cauchy stress.
     pub stress: Vec<Matrix<D>>,
+    /// σzz in 2D (plane strain): the stress across the plane the held third direction
+    /// carries, from laws that say `plane_strain_stress` (0 for others); empty in 3D.
+    pub stress_zz: Vec<f64>,
     /// APIC affine velocity matrix C (empty unless APIC).
     pub affine: Vec<Matrix<D>>,
     /// Velocity gradient of the last step (empty unless a material needs it).
@@ -81,7 +88,11 @@ impl<const D: usize> Particles<D> {
             .map(|s| s.capacity() * 8)
             .sum();
         (self.position.capacity() + self.velocity.capacity() + self.initial_position.capacity()) * v
-            + (self.mass.capacity() + self.volume0.capacity() + self.half_size.capacity()) * 8
+            + (self.mass.capacity()
+                + self.volume0.capacity()
+                + self.half_size.capacity()
+                + self.stress_zz.capacity())
+                * 8
             + (self.deformation_gradient.capacity()
                 + self.stress.capacity()
                 + self.affine.capacity()

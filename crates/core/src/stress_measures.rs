@@ -14,24 +14,32 @@ use crate::particles::Particles;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
 
-/// Von Mises stress of a stress tensor (missing components zero: in 2D the plane-stress
-/// formula of the stored in-plane stress).
-pub(crate) fn von_mises<const D: usize>(s: &Matrix<D>) -> f64 {
+/// Von Mises stress of a stress tensor; in 2D (plane strain) `zz` is σzz, the stress across
+/// the plane (the shears out of the plane are zero there). `zz` is unused in 3D.
+pub(crate) fn von_mises<const D: usize>(s: &Matrix<D>, zz: f64) -> f64 {
     let c = |i: usize, j: usize| if i < D && j < D { s[(i, j)] } else { 0.0 };
-    let (xx, yy, zz) = (c(0, 0), c(1, 1), c(2, 2));
+    let zz = if D == 2 { zz } else { c(2, 2) };
+    let (xx, yy) = (c(0, 0), c(1, 1));
     let (xy, yz, zx) = (c(0, 1), c(1, 2), c(2, 0));
     (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2))
         + 3.0 * (xy * xy + yz * yz + zx * zx))
         .sqrt()
 }
 
+/// Von Mises stress of particle `p`, σzz included in 2D (see [`Particles::stress_zz`]).
+fn particle_von_mises<const D: usize>(particles: &Particles<D>, p: usize) -> f64 {
+    let zz = particles.stress_zz.get(p).copied().unwrap_or(0.0);
+    von_mises::<D>(&particles.stress[p], zz)
+}
+
 /// Largest von Mises stress of each material's particles, Pa.
 pub fn peak_von_mises<const D: usize>(particles: &Particles<D>) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
     for group in &particles.groups {
-        let peak = particles.stress[group.range.clone()]
-            .iter()
-            .map(von_mises::<D>)
+        let peak = group
+            .range
+            .clone()
+            .map(|p| particle_von_mises(particles, p))
             .fold(0.0, f64::max);
         let entry = out.entry(group.name.clone()).or_insert(0.0f64);
         *entry = entry.max(peak);
@@ -52,9 +60,9 @@ pub fn averaged_peak_von_mises<const D: usize>(
     };
     for group in &particles.groups {
         let range = group.range.clone();
-        let stress: Vec<f64> = particles.stress[range.clone()]
-            .iter()
-            .map(von_mises::<D>)
+        let stress: Vec<f64> = range
+            .clone()
+            .map(|p| particle_von_mises(particles, p))
             .collect();
         let volume: Vec<f64> = range
             .clone()
@@ -111,10 +119,25 @@ mod tests {
     #[test]
     fn von_mises_of_uniaxial_and_pure_shear() {
         let uniaxial = Matrix::<3>::from_diagonal(&crate::math::Vector::<3>::new(2.0, 0.0, 0.0));
-        assert!((von_mises::<3>(&uniaxial) - 2.0).abs() < 1e-12);
+        assert!((von_mises::<3>(&uniaxial, 0.0) - 2.0).abs() < 1e-12);
+        // σzz is read from the matrix in 3D, whatever `zz` says.
+        assert!((von_mises::<3>(&uniaxial, 7.0) - 2.0).abs() < 1e-12);
         let mut shear = Matrix::<2>::zeros();
         shear[(0, 1)] = 1.0;
         shear[(1, 0)] = 1.0;
-        assert!((von_mises::<2>(&shear) - 3f64.sqrt()).abs() < 1e-12);
+        assert!((von_mises::<2>(&shear, 0.0) - 3f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn plane_strain_von_mises_counts_the_stress_across_the_plane() {
+        // A hydrostatic state in plane strain has no von Mises stress only with σzz.
+        let p = Matrix::<2>::identity() * -5.0;
+        assert!(von_mises::<2>(&p, -5.0).abs() < 1e-12);
+        assert!((von_mises::<2>(&p, 0.0) - 5.0).abs() < 1e-12);
+        // Uniaxial σxx with σzz = ν σxx (plane strain, ν = 0.3): √(1 − ν + ν²) σxx.
+        let mut s = Matrix::<2>::zeros();
+        s[(0, 0)] = 10.0;
+        let expected = 10.0 * (1.0f64 - 0.3 + 0.09).sqrt();
+        assert!((von_mises::<2>(&s, 3.0) - expected).abs() < 1e-12);
     }
 }

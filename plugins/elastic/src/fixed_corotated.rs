@@ -3,7 +3,9 @@
 //! the polar decomposition F = R S.
 
 use crate::ElasticParameters;
-use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, lame_parameters};
+use mpm_core::material::{
+    BatchStats, ConstitutiveLaw, StressBatch, lame_parameters, out_of_plane_stretch,
+};
 use mpm_core::math::{Matrix, determinant, polar_rotation};
 
 /// Fixed-corotated solid (plane strain in 2D).
@@ -32,23 +34,36 @@ impl ConstitutiveLaw for FixedCorotated {
         1.0 + self.params.poisson_ratio
     }
 
+    /// In 2D, F is [[F, 0], [0, s]] with s the stretch across the plane, whose rotation is
+    /// [[R, 0], [0, 1]].
+    fn plane_strain_stress(&self) -> bool {
+        true
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let identity = Matrix::<D>::identity();
         let (lambda, mu) = (self.lambda, self.mu);
         let mut energy = 0.0;
         let mut max_j = 1.0f64;
-        for ((f, stress), v0) in batch
+        for (k, ((f, stress), v0)) in batch
             .deformation_gradient
             .iter()
             .zip(batch.stress.iter_mut())
             .zip(batch.volume0)
+            .enumerate()
         {
-            let j = determinant(f);
+            let s = out_of_plane_stretch(batch.out_of_plane_stretch, k);
+            let j = determinant(f) * s;
             let r = polar_rotation(f);
             let fr = f - r;
             // σ = (1/J) P Fᵀ = (1/J) [2μ (F − R) Fᵀ + λ (J − 1) J I]
             *stress = (fr * f.transpose() * (2.0 * mu) + identity * (lambda * (j - 1.0) * j)) / j;
-            energy += v0 * (mu * fr.norm_squared() + 0.5 * lambda * (j - 1.0) * (j - 1.0));
+            if let Some(out) = batch.out_of_plane_stress.get_mut(k) {
+                *out = (2.0 * mu * (s - 1.0) * s + lambda * (j - 1.0) * j) / j;
+            }
+            energy += v0
+                * (mu * (fr.norm_squared() + (s - 1.0) * (s - 1.0))
+                    + 0.5 * lambda * (j - 1.0) * (j - 1.0));
             max_j = max_j.max(j);
         }
         // The volumetric tangent λ J² grows with expansion; stay conservative.

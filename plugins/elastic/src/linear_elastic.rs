@@ -2,7 +2,9 @@
 //! problems with small displacements, wrong under large rotations.
 
 use crate::ElasticParameters;
-use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, TangentBatch, lame_parameters};
+use mpm_core::material::{
+    BatchStats, ConstitutiveLaw, StressBatch, TangentBatch, lame_parameters, out_of_plane_stretch,
+};
 use mpm_core::math::{Matrix, trace};
 
 /// σ = λ tr(ε) I + 2 μ ε.
@@ -31,19 +33,31 @@ impl ConstitutiveLaw for LinearElastic {
         1.0 + self.params.poisson_ratio
     }
 
+    /// In 2D the strain across the plane is the stretch there less 1 (0 without a free
+    /// strain across the plane).
+    fn plane_strain_stress(&self) -> bool {
+        true
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let identity = Matrix::<D>::identity();
         let mut energy = 0.0;
-        for ((f, stress), v0) in batch
+        for (k, ((f, stress), v0)) in batch
             .deformation_gradient
             .iter()
             .zip(batch.stress.iter_mut())
             .zip(batch.volume0)
+            .enumerate()
         {
             let strain = (f + f.transpose()) * 0.5 - identity;
-            let tr = trace(&strain);
+            let zz = out_of_plane_stretch(batch.out_of_plane_stretch, k) - 1.0;
+            let tr = trace(&strain) + zz;
             *stress = identity * (self.lambda * tr) + strain * (2.0 * self.mu);
-            energy += v0 * (0.5 * self.lambda * tr * tr + self.mu * strain.norm_squared());
+            if let Some(out) = batch.out_of_plane_stress.get_mut(k) {
+                *out = self.lambda * tr + 2.0 * self.mu * zz;
+            }
+            energy +=
+                v0 * (0.5 * self.lambda * tr * tr + self.mu * (strain.norm_squared() + zz * zz));
         }
         BatchStats {
             strain_energy: energy,

@@ -2,7 +2,9 @@
 //! ψ = μ/2 (tr(FᵀF) − d) − μ ln J + λ/2 (ln J)², σ = μ/J (F Fᵀ − I) + λ ln J / J · I.
 
 use crate::ElasticParameters;
-use mpm_core::material::{BatchStats, ConstitutiveLaw, StressBatch, TangentBatch, lame_parameters};
+use mpm_core::material::{
+    BatchStats, ConstitutiveLaw, StressBatch, TangentBatch, lame_parameters, out_of_plane_stretch,
+};
 use mpm_core::math::{Matrix, cofactor, determinant};
 
 /// Compressible neo-Hookean solid (plane strain in 2D).
@@ -31,24 +33,34 @@ impl ConstitutiveLaw for NeoHookean {
         1.0 + self.params.poisson_ratio
     }
 
+    /// In 2D, F is [[F, 0], [0, s]] with s the stretch across the plane.
+    fn plane_strain_stress(&self) -> bool {
+        true
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let identity = Matrix::<D>::identity();
         let (lambda, mu) = (self.lambda, self.mu);
         let mut energy = 0.0;
         let mut min_j = f64::INFINITY;
-        for ((f, stress), v0) in batch
+        for (k, ((f, stress), v0)) in batch
             .deformation_gradient
             .iter()
             .zip(batch.stress.iter_mut())
             .zip(batch.volume0)
+            .enumerate()
         {
-            let j = determinant(f);
+            let s = out_of_plane_stretch(batch.out_of_plane_stretch, k);
+            let j = determinant(f) * s;
             let log_j = j.ln();
             let b = f * f.transpose();
             *stress = (b - identity) * (mu / j) + identity * (lambda * log_j / j);
-            let tr_c = f.norm_squared();
-            energy +=
-                v0 * (0.5 * mu * (tr_c - D as f64) - mu * log_j + 0.5 * lambda * log_j * log_j);
+            if let Some(out) = batch.out_of_plane_stress.get_mut(k) {
+                *out = (mu * (s * s - 1.0) + lambda * log_j) / j;
+            }
+            // tr(FᵀF) − d of the whole F: the plane's part and the stretch's.
+            let tr_c = f.norm_squared() - D as f64 + (s * s - 1.0);
+            energy += v0 * (0.5 * mu * tr_c - mu * log_j + 0.5 * lambda * log_j * log_j);
             min_j = min_j.min(j);
         }
         // Tangent stiffness grows under compression: (λ + 2μ − 2λ ln J) / J per unit
@@ -69,19 +81,22 @@ impl ConstitutiveLaw for NeoHookean {
         true
     }
 
-    /// dσ = −t σ + μ/J (δF Fᵀ + F δFᵀ) + λ t / J · I with t = tr(F⁻¹ δF) = dJ / J.
+    /// dσ = −t σ + μ/J (δF Fᵀ + F δFᵀ) + λ t / J · I with t = tr(F⁻¹ δF) = dJ / J (the
+    /// stretch across the plane held).
     fn stress_derivative<const D: usize>(&self, batch: TangentBatch<'_, D>) {
         let identity = Matrix::<D>::identity();
         let (lambda, mu) = (self.lambda, self.mu);
-        for (((f, df), stress), out) in batch
+        for (k, (((f, df), stress), out)) in batch
             .deformation_gradient
             .iter()
             .zip(batch.direction)
             .zip(batch.stress)
             .zip(batch.stress_change.iter_mut())
+            .enumerate()
         {
-            let j = determinant(f);
-            let t = cofactor(f).component_mul(df).sum() / j;
+            let j_plane = determinant(f);
+            let t = cofactor(f).component_mul(df).sum() / j_plane;
+            let j = j_plane * out_of_plane_stretch(batch.out_of_plane_stretch, k);
             let db = df * f.transpose() + f * df.transpose();
             *out = stress * (-t) + db * (mu / j) + identity * (lambda * t / j);
         }

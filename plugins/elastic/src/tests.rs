@@ -16,6 +16,8 @@ fn stress_of<L: ConstitutiveLaw, const D: usize>(law: &L, f: Matrix<D>) -> (Matr
     let fs = [f];
     let mut stress = [Matrix::<D>::zeros()];
     let stats = law.update_stress(StressBatch {
+        out_of_plane_stretch: &[],
+        out_of_plane_stress: &mut [],
         dt: 0.0,
         deformation_gradient: &fs,
         velocity_gradient: &[],
@@ -94,6 +96,7 @@ fn derivative_error<L: ConstitutiveLaw, const D: usize>(
     let (stress, _) = stress_of(law, f);
     let mut analytic = [Matrix::<D>::zeros()];
     law.stress_derivative(TangentBatch {
+        out_of_plane_stretch: &[],
         dt: 0.0,
         deformation_gradient: &[f],
         direction: &[df],
@@ -123,5 +126,104 @@ fn analytic_stress_derivatives_match_differences_of_the_update() {
         derivative_error(&LinearElastic::new(params()), f2, d2),
     ] {
         assert!(error < 1e-7, "relative error {error}");
+    }
+}
+
+/// The 2D update with a stretch across the plane: in-plane stress, σzz and energy.
+fn plane_strain_stress_of<L: ConstitutiveLaw>(
+    law: &L,
+    f: Matrix<2>,
+    stretch: f64,
+) -> (Matrix<2>, f64, f64) {
+    let fs = [f];
+    let mut stress = [Matrix::<2>::zeros()];
+    let mut zz = [f64::NAN];
+    let stats = law.update_stress(StressBatch {
+        out_of_plane_stretch: &[stretch],
+        out_of_plane_stress: &mut zz,
+        dt: 0.0,
+        deformation_gradient: &fs,
+        velocity_gradient: &[],
+        volume0: &[1.0],
+        stress: &mut stress,
+        state: StateSlices {
+            fields: std::array::from_fn(|_| &mut [][..]),
+        },
+        shared: [&[]; 4],
+        plastic_work: &mut [],
+    });
+    (stress[0], zz[0], stats.strain_energy)
+}
+
+/// Asserts that `law`'s 2D update at `f` with stretch `s` across the plane is its 3D update
+/// at [[f, 0], [0, s]]: in-plane stress, σzz and energy, to round-off.
+fn assert_plane_strain_is_3d<L: ConstitutiveLaw>(name: &str, law: &L, f: Matrix<2>, s: f64) {
+    let (in_plane, zz, energy) = plane_strain_stress_of(law, f, s);
+    let (full, energy3) = stress_of(law, mpm_core::math::embed3(&f, s));
+    let scale = full.norm();
+    for r in 0..2 {
+        for c in 0..2 {
+            assert!(
+                (in_plane[(r, c)] - full[(r, c)]).abs() < 1e-12 * scale,
+                "{name} s={s}: σ{r}{c} {} against 3D {}",
+                in_plane[(r, c)],
+                full[(r, c)]
+            );
+        }
+    }
+    assert!(
+        (zz - full[(2, 2)]).abs() < 1e-12 * scale,
+        "{name} s={s}: σzz {zz} against {}",
+        full[(2, 2)]
+    );
+    assert!(
+        (energy - energy3).abs() < 1e-12 * energy3.abs().max(1.0),
+        "{name} s={s}: energy {energy} against {energy3}"
+    );
+}
+
+#[test]
+fn a_2d_particle_is_the_3d_law_with_its_stretch_across_the_plane() {
+    // Finite shear and stretch in the plane, the third direction shrunk as a cooled
+    // (free-strain) particle's is, or stretched.
+    let f = Matrix::<2>::new(1.08, 0.21, -0.05, 0.93);
+    for s in [1.0, 0.985, 1.02] {
+        assert_plane_strain_is_3d("linear", &LinearElastic::new(params()), f, s);
+        assert_plane_strain_is_3d("neo-Hookean", &NeoHookean::new(params()), f, s);
+        assert_plane_strain_is_3d("fixed-corotated", &FixedCorotated::new(params()), f, s);
+    }
+}
+
+#[test]
+fn analytic_derivatives_hold_the_stretch_across_the_plane() {
+    use mpm_core::material::{StateView, TangentBatch};
+    let f = Matrix::<2>::new(1.1, 0.2, -0.1, 0.95);
+    let df = Matrix::<2>::new(-0.2, 0.3, 0.1, 0.4);
+    let s = 0.97;
+    let laws: [&dyn Fn(Matrix<2>) -> Matrix<2>; 2] = [
+        &|f| plane_strain_stress_of(&NeoHookean::new(params()), f, s).0,
+        &|f| plane_strain_stress_of(&LinearElastic::new(params()), f, s).0,
+    ];
+    for (k, stress) in laws.iter().enumerate() {
+        let mut analytic = [Matrix::<2>::zeros()];
+        let batch = TangentBatch {
+            out_of_plane_stretch: &[s],
+            dt: 0.0,
+            deformation_gradient: &[f],
+            direction: &[df],
+            stress: &[stress(f)],
+            state: StateView { fields: [&[]; 8] },
+            shared: [&[]; 4],
+            stress_change: &mut analytic,
+        };
+        if k == 0 {
+            NeoHookean::new(params()).stress_derivative(batch);
+        } else {
+            LinearElastic::new(params()).stress_derivative(batch);
+        }
+        let h = 1e-6;
+        let numeric = (stress(f + df * h) - stress(f - df * h)) / (2.0 * h);
+        let error = (analytic[0] - numeric).norm() / numeric.norm();
+        assert!(error < 1e-7, "law {k}: relative error {error}");
     }
 }

@@ -15,7 +15,7 @@ use crate::damage::FailureMode;
 use mpm_core::log_strain::{ElasticTrial, elastic_trial};
 use mpm_core::material::{
     AveragedState, BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch,
-    TangentBatch, lame_parameters,
+    TangentBatch, lame_parameters, out_of_plane_stretch,
 };
 #[cfg(test)]
 use mpm_core::math::Matrix;
@@ -120,6 +120,12 @@ impl ConstitutiveLaw for JohnsonCook {
         1.0 + self.params.poisson_ratio
     }
 
+    /// In 2D the law works on [[F, 0], [0, s]], s the stretch across the plane, and gives
+    /// σzz from its 3D stress.
+    fn plane_strain_stress(&self) -> bool {
+        true
+    }
+
     fn state_fields(&self) -> &[FieldSpec] {
         &self.fields
     }
@@ -183,7 +189,10 @@ impl ConstitutiveLaw for JohnsonCook {
         {
             let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
             let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
-            let Some(elastic) = elastic_trial(&embed3(f, 1.0), &fp_inv) else {
+            let Some(elastic) = elastic_trial(
+                &embed3(f, out_of_plane_stretch(batch.out_of_plane_stretch, k)),
+                &fp_inv,
+            ) else {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
@@ -248,7 +257,11 @@ impl ConstitutiveLaw for JohnsonCook {
 
             // Cauchy stress σ = τ/J, principal directions from the trial elastic strain.
             let principal = deviatoric_stress.map(|s| s / j - pressure);
-            *stress = top_left(&(axes * Matrix3::from_diagonal(&principal) * axes.transpose()));
+            let full = axes * Matrix3::from_diagonal(&principal) * axes.transpose();
+            *stress = top_left(&full);
+            if let Some(out) = batch.out_of_plane_stress.get_mut(k) {
+                *out = full[(2, 2)];
+            }
 
             // Return the elastic stretch along the same axes (Fp⁻¹ row-major in its slot).
             let new_deviatoric = deviatoric_stress / (2.0 * mu);

@@ -17,7 +17,7 @@
 use crate::damage::FailureMode;
 use crate::johnson_cook::JohnsonCook;
 use mpm_core::log_strain::{deviator, elastic_trial_change};
-use mpm_core::material::TangentBatch;
+use mpm_core::material::{TangentBatch, out_of_plane_stretch};
 use mpm_core::math::{embed3, top_left};
 use nalgebra::Matrix3;
 
@@ -41,9 +41,13 @@ pub(crate) fn stress_derivative<const D: usize>(law: &JohnsonCook, batch: Tangen
         .enumerate()
     {
         out.fill(0.0);
-        // In 2D the out-of-plane stretch stays 1: δF_zz = 0.
+        // In 2D the stretch across the plane is held: δF_zz = 0.
         let fp_inv = Matrix3::from_row_slice(&inverse_f[9 * k..9 * k + 9]);
-        let Some(trial) = elastic_trial_change(&embed3(f, 1.0), &embed3(df, 0.0), &fp_inv) else {
+        let Some(trial) = elastic_trial_change(
+            &embed3(f, out_of_plane_stretch(batch.out_of_plane_stretch, k)),
+            &embed3(df, 0.0),
+            &fp_inv,
+        ) else {
             continue;
         };
         let (j, dj, e, d_strain) = (trial.j, trial.dj, trial.strain, trial.change);

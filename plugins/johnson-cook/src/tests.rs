@@ -49,10 +49,18 @@ impl<const D: usize> Point<D> {
     }
 
     fn step(&mut self, f: Matrix<D>, dt: f64) {
+        self.step_stretched(f, 1.0, dt);
+    }
+
+    /// A step with a stretch across the plane (2D); returns σzz (NaN in 3D).
+    fn step_stretched(&mut self, f: Matrix<D>, stretch: f64, dt: f64) -> f64 {
+        let mut zz = [f64::NAN];
         let mut iter = self.state.iter_mut();
         let fields: [&mut [f64]; MAX_STATE_FIELDS] =
             std::array::from_fn(|_| iter.next().map_or(&mut [][..], |v| &mut v[..]));
         let batch = StressBatch {
+            out_of_plane_stretch: if D == 2 { &[stretch][..] } else { &[] },
+            out_of_plane_stress: if D == 2 { &mut zz[..] } else { &mut [] },
             dt,
             deformation_gradient: std::slice::from_ref(&f),
             velocity_gradient: &[],
@@ -63,6 +71,7 @@ impl<const D: usize> Point<D> {
             plastic_work: &mut [],
         };
         self.law.update_stress::<D>(batch);
+        zz[0]
     }
 
     fn field(&self, name: &str) -> f64 {
@@ -352,6 +361,7 @@ fn tangent_error<const D: usize>(
         std::array::from_fn(|k| start.get(k).map_or(&[][..], |v| &v[..]));
     let mut analytic = [Matrix::<D>::zeros()];
     point.law.stress_derivative(TangentBatch {
+        out_of_plane_stretch: &[],
         dt,
         deformation_gradient: &[f],
         direction: &[df],
@@ -476,4 +486,42 @@ fn averaged_damage_is_driven_through_the_local_field() {
     let plain = JohnsonCook::new(local_only);
     assert!(ConstitutiveLaw::averaged_state(&plain).is_none());
     assert_eq!(ConstitutiveLaw::state_fields(&plain).len(), 5);
+}
+
+#[test]
+fn a_2d_point_is_the_3d_law_with_its_stretch_across_the_plane() {
+    // Plastic shear and stretch in the plane while the third direction shrinks (a cooling
+    // free strain): the 2D update, σzz included, follows the 3D update at
+    // F = [[F, 0], [0, s]] step by step.
+    let mut plane = Point::<2>::new(copper());
+    let mut solid = Point::<3>::new(copper());
+    let dt = 1e-6;
+    for n in 1..=40 {
+        let t = n as f64 / 40.0;
+        let f = Matrix::<2>::new(1.0 + 0.02 * t, 0.03 * t, 0.0, 1.0 - 0.01 * t);
+        let s = 1.0 - 0.004 * t;
+        let zz = plane.step_stretched(f, s, dt);
+        solid.step(mpm_core::math::embed3(&f, s), dt);
+        let scale = solid.stress.norm();
+        for r in 0..2 {
+            for c in 0..2 {
+                assert!(
+                    (plane.stress[(r, c)] - solid.stress[(r, c)]).abs() < 1e-9 * scale,
+                    "step {n}: σ{r}{c} {} against {}",
+                    plane.stress[(r, c)],
+                    solid.stress[(r, c)]
+                );
+            }
+        }
+        assert!(
+            (zz - solid.stress[(2, 2)]).abs() < 1e-9 * scale,
+            "step {n}: σzz {zz} against {}",
+            solid.stress[(2, 2)]
+        );
+    }
+    assert!(plane.field("plastic_strain") > 0.0, "the path must yield");
+    assert!(
+        (plane.field("plastic_strain") - solid.field("plastic_strain")).abs()
+            < 1e-9 * solid.field("plastic_strain")
+    );
 }

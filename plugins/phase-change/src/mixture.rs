@@ -16,11 +16,16 @@
 //!
 //! With `solid.plasticity` the solid stress is returned onto a Johnson–Cook yield surface
 //! after each increment and damages to failure (`mixture_plasticity.rs`).
+//!
+//! In 2D (plane strain) the law is its 3D self at F = [[F, 0], [0, s]], s the stretch across
+//! the plane (1 unless a free strain acts there): the solid stress keeps its zz part in slot
+//! 8 of `solid_stress`, and `previous_F`'s slot 8 keeps s − 1 of the last update (so its
+//! zero start is the unstretched state).
 
 use crate::mixture_plasticity::{self, PlasticState, SolidPlasticity};
 use mpm_core::material::{
     AveragedState, BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, SharedRead, StressBatch,
-    TangentBatch, lame_parameters,
+    TangentBatch, lame_parameters, out_of_plane_stretch,
 };
 use mpm_core::math::{Matrix, cofactor, determinant, inverse};
 use mpm_core::plugin::check_elastic_constants;
@@ -146,6 +151,16 @@ fn store<const D: usize>(slot: &mut [f64], m: &Matrix<D>) {
     }
 }
 
+/// In 2D, the stretch across the plane now and at the last update (`previous_F`'s slot 8
+/// holds s − 1); in 3D, 1 and 1 (slot 8 there is F_zz itself).
+fn stretches<const D: usize>(stretch: &[f64], previous: &[f64], k: usize) -> (f64, f64) {
+    if D == 2 {
+        (out_of_plane_stretch(stretch, k), 1.0 + previous[9 * k + 8])
+    } else {
+        (1.0, 1.0)
+    }
+}
+
 /// The law (see the module documentation).
 pub struct PhaseMixture {
     params: PhaseMixtureParameters,
@@ -259,6 +274,12 @@ impl ConstitutiveLaw for PhaseMixture {
         self.params.solid.plasticity.is_some()
     }
 
+    /// See the module documentation: the solid keeps σzz, the liquid's pressure sees the
+    /// whole volume change.
+    fn plane_strain_stress(&self) -> bool {
+        true
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let mut fields = batch.state.fields;
         let mut take = |slot: Option<usize>| slot.map(|i| std::mem::take(&mut fields[i]));
@@ -288,15 +309,19 @@ impl ConstitutiveLaw for PhaseMixture {
         {
             let phi = fraction.get(k).copied().unwrap_or(1.0).clamp(0.0, 1.0);
             let f_prev: Matrix<D> = load(&previous[9 * k..9 * k + 9]);
+            let (stretch, stretch_prev) = stretches::<D>(batch.out_of_plane_stretch, previous, k);
             let increment = inverse(&f_prev).map_or(identity, |inv| f * inv);
             let strain = (increment + increment.transpose()) * 0.5 - identity;
             let spin = (increment - increment.transpose()) * 0.5;
+            // The strain across the plane (0 in 3D) and the whole trace.
+            let strain_zz = stretch / stretch_prev - 1.0;
+            let trace = strain.trace() + strain_zz;
             let mut s: Matrix<D> = load(&solid[9 * k..9 * k + 9]);
             s += spin * s - s * spin;
-            s += (identity * (lambda * strain.trace()) + strain * (2.0 * mu)) * phi;
+            s += (identity * (lambda * trace) + strain * (2.0 * mu)) * phi;
+            // σzz of the solid (2D; unused in 3D).
+            let mut zz = solid[9 * k + 8] + phi * (lambda * trace + 2.0 * mu * strain_zz);
             if let Some(plastic) = &plasticity {
-                let slot = &mut solid[9 * k..9 * k + 9];
-                let zz = slot[8] + phi * lambda * strain.trace();
                 let mut s3 = mixture_plasticity::embed(&s, zz);
                 let work = plastic.apply(
                     &mut s3,
@@ -314,18 +339,19 @@ impl ConstitutiveLaw for PhaseMixture {
                     // Per reference volume, as the ledger and the heat source count it.
                     *w = work * determinant(f);
                 }
-                let (in_plane, zz) = mixture_plasticity::project::<D>(&s3);
+                let (in_plane, out_of_plane) = mixture_plasticity::project::<D>(&s3);
                 s = in_plane;
-                store(slot, &s);
-                if D == 2 {
-                    slot[8] = zz;
-                }
-            } else {
-                store(&mut solid[9 * k..9 * k + 9], &s);
+                zz = out_of_plane;
             }
-            let ln_j = determinant(f).max(1e-300).ln();
+            let slot = &mut solid[9 * k..9 * k + 9];
+            store(slot, &s);
+            if D == 2 {
+                slot[8] = zz;
+                previous[9 * k + 8] = stretch - 1.0;
+            }
+            let ln_j = (determinant(f) * stretch).max(1e-300).ln();
             let mean = if tau.is_some() {
-                let ln_j_prev = determinant(&f_prev).max(1e-300).ln();
+                let ln_j_prev = (determinant(&f_prev) * stretch_prev).max(1e-300).ln();
                 let q = decay * pressure[k] + gain * bulk * (ln_j - ln_j_prev);
                 pressure[k] = q;
                 q
@@ -338,16 +364,27 @@ impl ConstitutiveLaw for PhaseMixture {
             } else {
                 Matrix::<D>::zeros()
             };
-            let deviatoric_rate = rate - identity * (rate.trace() / 3.0);
+            let rate_zz = if batch.dt > 0.0 {
+                strain_zz / batch.dt
+            } else {
+                0.0
+            };
+            let rate_trace = rate.trace() + rate_zz;
+            let deviatoric_rate = rate - identity * (rate_trace / 3.0);
             let fluid = deviatoric_rate * (2.0 * eta) + identity * mean;
             *stress = s + fluid * (1.0 - phi);
+            if let Some(out) = batch.out_of_plane_stress.get_mut(k) {
+                let fluid_zz = 2.0 * eta * (rate_zz - rate_trace / 3.0) + mean;
+                *out = zz + fluid_zz * (1.0 - phi);
+            }
             let liquid_energy = if bulk > 0.0 {
                 0.5 * mean * mean / bulk
             } else {
                 0.0
             };
-            energy +=
-                batch.volume0[k] * (s.norm_squared() / (4.0 * mu) + (1.0 - phi) * liquid_energy);
+            let zz2 = if D == 2 { zz * zz } else { 0.0 };
+            energy += batch.volume0[k]
+                * ((s.norm_squared() + zz2) / (4.0 * mu) + (1.0 - phi) * liquid_energy);
             stiffest = stiffest.max(phi * (lambda + 2.0 * mu) + (1.0 - phi) * bulk);
         }
         BatchStats {
@@ -392,6 +429,7 @@ impl ConstitutiveLaw for PhaseMixture {
         {
             let phi = fraction.get(k).copied().unwrap_or(1.0).clamp(0.0, 1.0);
             let f_prev: Matrix<D> = load(&previous[9 * k..9 * k + 9]);
+            let (stretch, stretch_prev) = stretches::<D>(batch.out_of_plane_stretch, previous, k);
             let s0: Matrix<D> = load(&solid[9 * k..9 * k + 9]);
             // Without an inverse the update takes the increment as I: no change.
             let f_prev_inverse = inverse(&f_prev);
@@ -405,10 +443,12 @@ impl ConstitutiveLaw for PhaseMixture {
                 let increment = f_prev_inverse.map_or(identity, |inv| f * inv);
                 let strain = (increment + increment.transpose()) * 0.5 - identity;
                 let spin = (increment - increment.transpose()) * 0.5;
+                let strain_zz = stretch / stretch_prev - 1.0;
+                let trace = strain.trace() + strain_zz;
                 let trial = s0 + spin * s0 - s0 * spin
-                    + (identity * (lambda * strain.trace()) + strain * (2.0 * mu)) * phi;
-                let zz = solid[9 * k + 8];
-                let trial3 = mixture_plasticity::embed(&trial, zz + phi * lambda * strain.trace());
+                    + (identity * (lambda * trace) + strain * (2.0 * mu)) * phi;
+                let zz = solid[9 * k + 8] + phi * (lambda * trace + 2.0 * mu * strain_zz);
+                let trial3 = mixture_plasticity::embed(&trial, zz);
                 let d_trial3 = mixture_plasticity::embed(&d_solid, phi * lambda * d_strain.trace());
                 let d3 = plastic.derivative(
                     &trial3,

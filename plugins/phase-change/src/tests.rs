@@ -157,6 +157,8 @@ fn mixture_tangent_error<const D: usize>(
             fields[2] = &mut q;
         }
         law.update_stress(StressBatch {
+            out_of_plane_stretch: &[],
+            out_of_plane_stress: &mut [],
             dt,
             deformation_gradient: &[g],
             velocity_gradient: &[],
@@ -179,6 +181,7 @@ fn mixture_tangent_error<const D: usize>(
     }
     let mut analytic = [Matrix::<D>::zeros()];
     law.stress_derivative(TangentBatch {
+        out_of_plane_stretch: &[],
         dt,
         deformation_gradient: &[f],
         direction: &[df],
@@ -247,6 +250,8 @@ fn relaxing_liquid_pressure_follows_the_maxwell_solution() {
                 fields[2] = &mut q;
             }
             law.update_stress(StressBatch {
+                out_of_plane_stretch: &[],
+                out_of_plane_stress: &mut [],
                 dt,
                 deformation_gradient: &[f],
                 velocity_gradient: &[],
@@ -351,6 +356,8 @@ fn mixture_plastic_work_closes_the_energy_balance_in_shear() {
             *slot = field;
         }
         let stats = law.update_stress(StressBatch {
+            out_of_plane_stretch: &[],
+            out_of_plane_stress: &mut [],
             dt: 1.0,
             deformation_gradient: &[f],
             velocity_gradient: &[],
@@ -378,4 +385,98 @@ fn mixture_plastic_work_closes_the_energy_balance_in_shear() {
         missing.abs() < 0.01 * work_done,
         "work {work_done:e} = stored {stored:e} + plastic {plastic:e} + {missing:e}"
     );
+}
+
+/// A 2D mixture particle is the 3D law at F = [[F, 0], [0, s]]: along a path of steps that
+/// stretches the plane and shrinks the third direction (a cure shrinkage acting across the
+/// plane), half gelled, with and without the liquid's pressure relaxation, the 2D stress
+/// and σzz follow the 3D stress.
+#[test]
+fn a_2d_mixture_is_the_3d_law_with_its_stretch_across_the_plane() {
+    use mpm_core::material::{ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StressBatch};
+    use mpm_core::math::{Matrix, embed3};
+    for tau in [None, Some(5.0)] {
+        let law = test_mixture(tau);
+        let fraction = [0.5];
+        let dt = 2.0;
+        // 2D state: F₀ row-major by 2 with s − 1 in slot 8; 3D: the 3×3 identity.
+        let mut state2 = [
+            vec![1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            vec![0.0; 9],
+            vec![0.0],
+        ];
+        let mut state3 = [
+            vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            vec![0.0; 9],
+            vec![0.0],
+        ];
+        for n in 1..=10 {
+            let t = n as f64 / 10.0;
+            let f = Matrix::<2>::new(1.0 + 0.003 * t, 0.002 * t, -0.001 * t, 1.0 - 0.002 * t);
+            let s = 1.0 - 0.004 * t;
+            let mut stress2 = [Matrix::<2>::zeros()];
+            let mut zz = [f64::NAN];
+            let mut stress3 = [Matrix::<3>::zeros()];
+            {
+                let [p, q, r] = &mut state2;
+                let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
+                fields[0] = p;
+                fields[1] = q;
+                if tau.is_some() {
+                    fields[2] = r;
+                }
+                law.update_stress(StressBatch {
+                    out_of_plane_stretch: &[s],
+                    out_of_plane_stress: &mut zz,
+                    dt,
+                    deformation_gradient: &[f],
+                    velocity_gradient: &[],
+                    volume0: &[1.0],
+                    stress: &mut stress2,
+                    state: StateSlices { fields },
+                    shared: [&fraction[..], &[], &[], &[]],
+                    plastic_work: &mut [],
+                });
+            }
+            {
+                let [p, q, r] = &mut state3;
+                let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
+                fields[0] = p;
+                fields[1] = q;
+                if tau.is_some() {
+                    fields[2] = r;
+                }
+                law.update_stress(StressBatch {
+                    out_of_plane_stretch: &[],
+                    out_of_plane_stress: &mut [],
+                    dt,
+                    deformation_gradient: &[embed3(&f, s)],
+                    velocity_gradient: &[],
+                    volume0: &[1.0],
+                    stress: &mut stress3,
+                    state: StateSlices { fields },
+                    shared: [&fraction[..], &[], &[], &[]],
+                    plastic_work: &mut [],
+                });
+            }
+            let full = stress3[0];
+            let scale = full.norm();
+            for r in 0..2 {
+                for c in 0..2 {
+                    assert!(
+                        (stress2[0][(r, c)] - full[(r, c)]).abs() < 1e-9 * scale,
+                        "τ {tau:?}, step {n}: σ{r}{c} {} against {}",
+                        stress2[0][(r, c)],
+                        full[(r, c)]
+                    );
+                }
+            }
+            assert!(
+                (zz[0] - full[(2, 2)]).abs() < 1e-9 * scale,
+                "τ {tau:?}, step {n}: σzz {} against {}",
+                zz[0],
+                full[(2, 2)]
+            );
+        }
+    }
 }

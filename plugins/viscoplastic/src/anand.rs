@@ -16,7 +16,7 @@ use crate::AnandParameters;
 use mpm_core::log_strain::{ElasticTrial, elastic_trial};
 use mpm_core::material::{
     BatchStats, ConstitutiveLaw, FieldInit, FieldSpec, INELASTIC_WORK, SharedRead, StressBatch,
-    TangentBatch, lame_parameters,
+    TangentBatch, lame_parameters, out_of_plane_stretch,
 };
 use mpm_core::math::{embed3, top_left};
 use nalgebra::Matrix3;
@@ -166,6 +166,12 @@ impl ConstitutiveLaw for Anand {
         1.0 + self.params.poisson_ratio
     }
 
+    /// In 2D the law works on [[F, 0], [0, s]], s the stretch across the plane, and gives
+    /// σzz from its 3D stress.
+    fn plane_strain_stress(&self) -> bool {
+        true
+    }
+
     fn state_fields(&self) -> &[FieldSpec] {
         &self.fields
     }
@@ -212,7 +218,10 @@ impl ConstitutiveLaw for Anand {
         {
             let fp_inv_slot = &mut inverse_f[9 * k..9 * k + 9];
             let fp_inv = Matrix3::from_row_slice(fp_inv_slot);
-            let Some(trial) = elastic_trial(&embed3(f, 1.0), &fp_inv) else {
+            let Some(trial) = elastic_trial(
+                &embed3(f, out_of_plane_stretch(batch.out_of_plane_stretch, k)),
+                &fp_inv,
+            ) else {
                 // The solver stops the run at det F <= 0; leave the stress unchanged.
                 continue;
             };
@@ -250,7 +259,11 @@ impl ConstitutiveLaw for Anand {
             let new_deviatoric = deviatoric * scale;
             let ln_j = j.ln();
             let principal = new_deviatoric.map(|e| (2.0 * mu * e + bulk * ln_j) / j);
-            *stress = top_left(&(axes * Matrix3::from_diagonal(&principal) * axes.transpose()));
+            let full = axes * Matrix3::from_diagonal(&principal) * axes.transpose();
+            *stress = top_left(&full);
+            if let Some(out) = batch.out_of_plane_stress.get_mut(k) {
+                *out = full[(2, 2)];
+            }
             if scale != 1.0 {
                 // Row-major, as the slot keeps it.
                 let fp_inv_new = trial.plastic_inverse_after(&new_deviatoric);

@@ -66,6 +66,8 @@ impl Point {
         let mut work = [0.0];
         let temperature = [self.temperature];
         let batch = StressBatch {
+            out_of_plane_stretch: &[],
+            out_of_plane_stress: &mut [],
             dt,
             deformation_gradient: std::slice::from_ref(&f),
             velocity_gradient: &[],
@@ -225,12 +227,15 @@ fn a_held_strain_relaxes_and_the_lost_elastic_energy_is_the_inelastic_work() {
 
 #[test]
 fn plane_strain_runs_the_same_update_with_the_held_third_direction() {
-    // A 2D particle is the 3D one with F_zz = 1: plane-strain shear gives the 3D stress.
+    // A 2D particle is the 3D one with F_zz its stretch across the plane (0.996: a cooling
+    // free strain): plane-strain shear gives the 3D stress, σzz included.
     let params = sac305();
     let flat = Anand::new(params);
     let gamma = 0.01;
+    let stretch = 0.996;
     let f2 = Matrix::<2>::new(1.0, gamma, 0.0, 1.0);
-    let f3 = Matrix3::new(1.0, gamma, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+    let f3 = Matrix3::new(1.0, gamma, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, stretch);
+    let mut zz = [f64::NAN];
     let mut point = Point::new(params, params.temperature);
     point.step(f3, 1.0);
     let mut state: Vec<Vec<f64>> = point
@@ -247,6 +252,8 @@ fn plane_strain_runs_the_same_update_with_the_held_third_direction() {
     ConstitutiveLaw::update_stress::<2>(
         &flat,
         StressBatch {
+            out_of_plane_stretch: &[stretch],
+            out_of_plane_stress: &mut zz,
             dt: 1.0,
             deformation_gradient: std::slice::from_ref(&f2),
             velocity_gradient: &[],
@@ -262,6 +269,11 @@ fn plane_strain_runs_the_same_update_with_the_held_third_direction() {
             assert!((stress[(r, c)] - point.stress[(r, c)]).abs() <= 1e-9 * point.von_mises());
         }
     }
+    assert!((zz[0] - point.stress[(2, 2)]).abs() <= 1e-9 * point.von_mises());
+    assert!(
+        point.stress[(2, 2)].abs() > 0.1 * point.von_mises(),
+        "the stretch must load zz"
+    );
 }
 
 #[test]
@@ -332,6 +344,7 @@ fn tangent_error(
     ConstitutiveLaw::stress_derivative::<3>(
         &point.law,
         TangentBatch {
+            out_of_plane_stretch: &[],
             dt,
             deformation_gradient: &[f],
             direction: &[df],

@@ -11,7 +11,12 @@
 //! Measured: the curvature as in `bimaterial_strip` (a least-squares fit of the particles'
 //! deflection over the inner `fit_fraction` of the half length), and each layer's mean σ
 //! along the strip over the same particles, against the closed form's mean
-//! Eᵢ (ε₀ + κ ȳᵢ − αᵢ ΔT) at the layer's mid-plane ȳᵢ.
+//! Eᵢ (ε₀ + κ ȳᵢ − αᵢ ΔT) at the layer's mid-plane ȳᵢ. In 2D also each layer's mean σzz,
+//! the stress across the plane that holds εzz = 0: σzz = νᵢ σxx − Eᵢ αᵢ ΔT (σyy = 0 in
+//! the strip), which only a run with `free_strain_2d: plane_strain` and laws that give σzz
+//! reaches. With `generalized_plane_strain` every layer has the same ε_zz = ε_c, with no net
+//! force along z: each layer's in-plane free strain becomes (1 + ν)αΔT − ν ε_c, its
+//! σzz = ν σxx + E (ε_c − αΔT), and ε_c solves Σ tᵢ σ̄zzᵢ = 0 (linear in ε_c).
 
 use super::bimaterial_strip::fit_curvature;
 use super::{Frame, Reference, ReferenceFactory, ReferenceLaw, TypedReferenceFactory};
@@ -56,6 +61,11 @@ pub struct LayeredStripParams {
     /// Fraction of the half length (from the symmetry plane) the fit and the means use.
     #[serde(default = "default_fit_fraction")]
     pub fit_fraction: f64,
+    /// In 2D: the strip is a section under generalized plane strain (one strain ε_zz for
+    /// every layer, no net force along z; `solver.free_strain_2d:
+    /// generalized_plane_strain`) instead of plane strain (ε_zz = 0).
+    #[serde(default)]
+    pub generalized_plane_strain: bool,
 }
 
 fn default_fit_fraction() -> f64 {
@@ -97,6 +107,11 @@ struct LayeredStrip {
     expected_stress: Vec<f64>,
     measured: Option<f64>,
     measured_stress: Vec<f64>,
+    /// In 2D, the closed form's mean σzz of each layer, Pa (empty in 3D).
+    #[serde(default)]
+    expected_stress_zz: Vec<f64>,
+    #[serde(default)]
+    measured_stress_zz: Vec<f64>,
 }
 
 impl ReferenceLaw for LayeredStrip {
@@ -123,7 +138,7 @@ impl ReferenceLaw for LayeredStrip {
         );
         let (ax, at) = (p.length_axis, p.thickness_axis);
         let limit = p.fit_fraction * p.half_length;
-        let mut sums = vec![(0.0, 0.0); p.layers.len()];
+        let mut sums = vec![(0.0, 0.0, 0.0); p.layers.len()];
         for i in 0..particles.len() {
             let x0 = particles.initial_position[i];
             if (x0[ax] - p.center).abs() > limit {
@@ -136,13 +151,15 @@ impl ReferenceLaw for LayeredStrip {
                 if x0[at] > below && x0[at] < top {
                     sums[k].0 += particles.stress[i][(ax, ax)];
                     sums[k].1 += 1.0;
+                    sums[k].2 += particles.stress_zz.get(i).copied().unwrap_or(0.0);
                 }
             }
         }
-        self.measured_stress = sums
-            .iter()
-            .map(|&(s, n)| if n > 0.0 { s / n } else { f64::NAN })
-            .collect();
+        let mean = |s: f64, n: f64| if n > 0.0 { s / n } else { f64::NAN };
+        self.measured_stress = sums.iter().map(|&(s, n, _)| mean(s, n)).collect();
+        if !self.expected_stress_zz.is_empty() {
+            self.measured_stress_zz = sums.iter().map(|&(_, n, zz)| mean(zz, n)).collect();
+        }
     }
 
     fn error(&self) -> Option<f64> {
@@ -159,17 +176,26 @@ impl ReferenceLaw for LayeredStrip {
     }
 
     fn comparisons(&self) -> Vec<Comparison> {
-        self.measured_stress
-            .iter()
-            .zip(&self.expected_stress)
-            .enumerate()
-            .map(|(k, (&m, &r))| Comparison {
-                quantity: format!("layer_{k}_mean_stress"),
-                measured: m,
-                reference: r,
-                relative_difference: (m - r) / r,
-            })
-            .collect()
+        let compare = |name: &str, measured: &[f64], expected: &[f64]| {
+            measured
+                .iter()
+                .zip(expected)
+                .enumerate()
+                .map(|(k, (&m, &r))| Comparison {
+                    quantity: format!("layer_{k}_mean_{name}"),
+                    measured: m,
+                    reference: r,
+                    relative_difference: (m - r) / r,
+                })
+                .collect::<Vec<_>>()
+        };
+        let mut out = compare("stress", &self.measured_stress, &self.expected_stress);
+        out.extend(compare(
+            "stress_zz",
+            &self.measured_stress_zz,
+            &self.expected_stress_zz,
+        ));
+        out
     }
 }
 
@@ -207,23 +233,69 @@ fn build(
         c.error("fit_fraction", "must lie in (0, 1]");
     }
     c.finish()?;
-    let effective: Vec<(f64, f64, f64)> = p
-        .layers
-        .iter()
-        .map(|l| {
-            let nu = l.poisson_ratio;
-            if d == 2 {
-                (
-                    l.thickness,
-                    l.youngs_modulus / (1.0 - nu * nu),
-                    (1.0 + nu) * l.expansion,
-                )
-            } else {
-                (l.thickness, l.youngs_modulus / (1.0 - nu), l.expansion)
-            }
-        })
-        .collect();
-    let (strain, expected) = layered_strip_solution(&effective, p.temperature_change);
+    if p.generalized_plane_strain && d != 2 {
+        let mut c = Checks::new(path);
+        c.error("generalized_plane_strain", "is for 2D scenes");
+        c.finish()?;
+    }
+    let dt = p.temperature_change;
+    // Effective layers for a strain `across` along z (2D): the in-plane expansion per
+    // kelvin that gives (1 + ν)αΔT − ν·across.
+    let effective = |across: f64| -> Vec<(f64, f64, f64)> {
+        p.layers
+            .iter()
+            .map(|l| {
+                let nu = l.poisson_ratio;
+                if d == 2 {
+                    let expansion = if dt != 0.0 {
+                        (1.0 + nu) * l.expansion - nu * across / dt
+                    } else {
+                        (1.0 + nu) * l.expansion
+                    };
+                    (l.thickness, l.youngs_modulus / (1.0 - nu * nu), expansion)
+                } else {
+                    (l.thickness, l.youngs_modulus / (1.0 - nu), l.expansion)
+                }
+            })
+            .collect()
+    };
+    // Each layer's mean σxx and σzz for a strain `across` along z.
+    let layer_stresses = |across: f64| -> (f64, f64, Vec<f64>, Vec<f64>) {
+        let layers = effective(across);
+        let (strain, curvature) = layered_strip_solution(&layers, dt);
+        let mut y = 0.0;
+        let sxx: Vec<f64> = layers
+            .iter()
+            .map(|&(t, e, alpha)| {
+                let mid = y + t / 2.0;
+                y += t;
+                e * (strain + curvature * mid - alpha * dt)
+            })
+            .collect();
+        let szz = p
+            .layers
+            .iter()
+            .zip(&sxx)
+            .map(|(l, &s)| l.poisson_ratio * s + l.youngs_modulus * (across - l.expansion * dt))
+            .collect();
+        (strain, curvature, sxx, szz)
+    };
+    // ε_c: the net force along z is linear in it.
+    let across = if p.generalized_plane_strain {
+        let force = |across: f64| -> f64 {
+            let (_, _, _, szz) = layer_stresses(across);
+            p.layers
+                .iter()
+                .zip(&szz)
+                .map(|(l, s)| l.thickness * s)
+                .sum()
+        };
+        let (f0, f1) = (force(0.0), force(1e-3));
+        -f0 * 1e-3 / (f1 - f0)
+    } else {
+        0.0
+    };
+    let (_, expected, expected_stress, szz) = layer_stresses(across);
     if expected == 0.0 || !expected.is_finite() {
         let mut c = Checks::new(path);
         c.error(
@@ -232,21 +304,16 @@ fn build(
         );
         c.finish()?;
     }
-    let mut y = 0.0;
-    let expected_stress = effective
-        .iter()
-        .map(|&(t, e, alpha)| {
-            let mid = y + t / 2.0;
-            y += t;
-            e * (strain + expected * mid - alpha * p.temperature_change)
-        })
-        .collect();
+    // σzz = ν σxx + E (ε_zz − α ΔT) with the layer's mean σxx (σyy = 0).
+    let expected_stress_zz = if d == 2 { szz } else { Vec::new() };
     Ok(Arc::new(LayeredStrip {
         p,
         expected,
         expected_stress,
         measured: None,
         measured_stress: Vec::new(),
+        expected_stress_zz,
+        measured_stress_zz: Vec::new(),
     }))
 }
 

@@ -286,6 +286,7 @@ pub fn test_particles<const D: usize>(
         volume0: volumes.to_vec(),
         deformation_gradient: Vec::new(),
         stress: Vec::new(),
+        stress_zz: Vec::new(),
         affine: Vec::new(),
         velocity_gradient: Vec::new(),
         half_size: Vec::new(),

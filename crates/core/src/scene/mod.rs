@@ -35,7 +35,7 @@ pub use solver_settings::{
 };
 pub use stages::{FIXED_ACROSS_STAGES, RemoveParticles, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{
-    CORE_FIELDS, INTERFACE_DAMAGE, ValidatedScene, parse_scene, parse_scene_value,
+    CORE_FIELDS, INTERFACE_DAMAGE, STRESS_ZZ, ValidatedScene, parse_scene, parse_scene_value,
     parse_scene_value_limited,
 };
 

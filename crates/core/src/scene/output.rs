@@ -16,7 +16,8 @@ pub struct Output {
     #[serde(default = "default_frames")]
     pub frames: u32,
     /// Particle fields to store: `x`, `v`, `stress`, `F`, `J`, `mass`, `volume`, `material`,
-    /// plus any field a material declares.
+    /// in 2D `stress_zz` (σzz, the stress across the plane in plane strain), plus any field
+    /// a material or physics declares.
     #[serde(default = "default_fields")]
     pub fields: Vec<String>,
     /// Checkpoints of the whole state, so `mpm run --resume STORE` can continue the run

@@ -460,10 +460,16 @@ pub enum FreeStrain2d {
     /// (in-plane thermal stresses about 1/(1 + ν) of physical plane strain).
     #[default]
     InPlane,
-    /// Physical plane strain: the in-plane free strain is scaled by each law's
-    /// `plane_strain_expansion` (1 + ν for isotropic elastic solids), exact for small
-    /// strains of isotropic linear elasticity.
+    /// Physical plane strain (εzz = 0): a law that says `plane_strain_stress` sees the free
+    /// strain across the plane too, as its stretch there, and gives σzz; another's in-plane
+    /// free strain is scaled by its `plane_strain_expansion` (1 + ν for isotropic elastic
+    /// solids) instead.
     PlaneStrain,
+    /// Generalized plane strain: as `plane_strain`, but the strain across the plane is one
+    /// constant ε₀ for the whole section, with no net force along it (a long body free to
+    /// contract along its length, such as a package's cross-section: the die, underfill and
+    /// substrate contract together instead of against a rigid wall).
+    GeneralizedPlaneStrain,
 }
 
 impl FreeStrain2d {
@@ -545,7 +551,7 @@ impl Solver {
         if let Some(dt) = self.dt {
             v.positive("solver.dt", dt);
         }
-        if self.free_strain_2d == FreeStrain2d::PlaneStrain && v.dim != 2 {
+        if !self.free_strain_2d.is_in_plane() && v.dim != 2 {
             v.err(
                 "solver.free_strain_2d",
                 "is for 2D scenes (a 3D scene's free strain acts in every direction): remove it",

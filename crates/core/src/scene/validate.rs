@@ -55,6 +55,10 @@ impl ValidatedScene {
 /// largest damage (0 intact, 1 debonded) of the interface nodes around each particle.
 pub const INTERFACE_DAMAGE: &str = "interface_damage";
 
+/// The per-particle output field of a 2D scene: σzz, the stress across the plane (plane
+/// strain), from the laws that give it (`ConstitutiveLaw::plane_strain_stress`).
+pub const STRESS_ZZ: &str = "stress_zz";
+
 /// Particle fields the core can write, with their per-particle shape.
 pub const CORE_FIELDS: &[&str] = &["x", "v", "stress", "F", "J", "mass", "volume", "material"];
 
@@ -468,6 +472,9 @@ impl Validator {
         let mut known: BTreeSet<&str> = CORE_FIELDS.iter().copied().collect();
         if s.contact.as_ref().is_some_and(|c| c.has_cohesive()) {
             known.insert(INTERFACE_DAMAGE);
+        }
+        if s.dimension == 2 {
+            known.insert(STRESS_ZZ);
         }
         let outflow = matches!(
             s.solver.mechanics,

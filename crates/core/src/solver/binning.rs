@@ -159,6 +159,9 @@ impl Reorder {
             if !p.half_size.is_empty() {
                 gather(&mut p.half_size[r.clone()], perm, visited);
             }
+            if !p.stress_zz.is_empty() {
+                gather(&mut p.stress_zz[r.clone()], perm, visited);
+            }
             if !p.initial_position.is_empty() {
                 gather(&mut p.initial_position[r.clone()], perm, visited);
             }

@@ -70,6 +70,7 @@ where
             flatten(&p.deformation_gradient),
         );
         c.put("particles.stress", flatten(&p.stress));
+        c.put("particles.stress_zz", p.stress_zz.clone());
         c.put("particles.affine", flatten(&p.affine));
         c.put("particles.velocity_gradient", flatten(&p.velocity_gradient));
         c.put("particles.half_size", p.half_size.clone());
@@ -309,6 +310,16 @@ where
             strict,
         )?;
         restore_vec(c, "particles.stress", &mut p.stress, dd, by_matrix, strict)?;
+        // Written by every stress update and read by nothing in the step: a checkpoint from
+        // before σzz was kept resumes with zeros until the first update.
+        restore_vec(
+            c,
+            "particles.stress_zz",
+            &mut p.stress_zz,
+            1,
+            by_number,
+            false,
+        )?;
         restore_vec(c, "particles.affine", &mut p.affine, dd, by_matrix, strict)?;
         restore_vec(
             c,

@@ -21,6 +21,7 @@ mod contact;
 mod contact_step;
 mod explicit;
 mod failure_watch;
+mod generalized_plane_strain;
 mod grid_to_particle;
 pub mod grid_update;
 mod hand_over;

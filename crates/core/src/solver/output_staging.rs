@@ -15,7 +15,7 @@ pub(super) fn output_fields<const D: usize>(
             let shape = match name.as_str() {
                 "x" | "v" => vec![D],
                 "stress" | "F" => vec![D, D],
-                "J" | "mass" | "volume" | "material" => vec![],
+                "J" | "mass" | "volume" | "material" | crate::scene::STRESS_ZZ => vec![],
                 other if particles.shared.contains(other) => vec![],
                 other => {
                     let comps = particles
@@ -79,6 +79,11 @@ pub(super) fn fill_staging<const D: usize>(
                     } else {
                         j * p.volume0[i]
                     };
+                }
+            }
+            crate::scene::STRESS_ZZ => {
+                for (i, zz) in p.stress_zz.iter().enumerate() {
+                    out[p.id[i] as usize] = *zz;
                 }
             }
             "mass" => {

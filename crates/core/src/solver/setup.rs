@@ -54,6 +54,7 @@ where
             volume0: Vec::with_capacity(n),
             deformation_gradient: vec![Matrix::<D>::identity(); n],
             stress: vec![Matrix::<D>::zeros(); n],
+            stress_zz: vec![0.0; alloc_if(D == 2)],
             affine: vec![Matrix::<D>::zeros(); alloc_if(s.solver.transfer == Transfer::Apic)],
             velocity_gradient: vec![Matrix::<D>::zeros(); alloc_if(needs_gradient)],
             half_size: Vec::with_capacity(alloc_if(K::USES_PARTICLE_SIZE)),
@@ -108,9 +109,11 @@ where
             let start = particles.position.len();
             let count = body.volumes.len();
             if particles.groups.last().is_none_or(|g| &g.name != name) {
-                let free_strain_factor = if D == 2
-                    && s.solver.free_strain_2d == crate::scene::FreeStrain2d::PlaneStrain
-                {
+                let plane_strain = D == 2 && !s.solver.free_strain_2d.is_in_plane();
+                // A law that works in 3D takes the free strain across the plane as its
+                // stretch there; another stands in for it by expanding more in the plane.
+                let free_strain_across_plane = plane_strain && material.plane_strain_stress();
+                let free_strain_factor = if plane_strain && !free_strain_across_plane {
                     material.plane_strain_expansion()
                 } else {
                     1.0
@@ -120,6 +123,7 @@ where
                     material: material.clone(),
                     range: start..start,
                     free_strain_factor,
+                    free_strain_across_plane,
                     state: Vec::new(),
                 });
             }
@@ -267,7 +271,11 @@ where
             needs_interpolation,
             group_views,
             report: PhysicsReport::default(),
-            stress_scratch: StressScratch::default(),
+            stress_scratch: StressScratch::new(
+                D == 2
+                    && s.solver.free_strain_2d
+                        == crate::scene::FreeStrain2d::GeneralizedPlaneStrain,
+            ),
             physics_dt: f64::INFINITY,
             relax_time: None,
             inflow,

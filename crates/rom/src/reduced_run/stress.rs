@@ -37,6 +37,8 @@ where
                     velocity_gradient: &[],
                     volume0,
                     stress,
+                    out_of_plane_stretch: &[],
+                    out_of_plane_stress: &mut [],
                     state: StateSlices {
                         fields: Default::default(),
                     },

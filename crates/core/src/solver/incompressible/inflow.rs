@@ -182,6 +182,7 @@ where
         mass,
         volume0,
         stress,
+        stress_zz,
         affine,
         velocity_gradient,
         id,
@@ -260,6 +261,9 @@ where
         ledger.openings += energy;
         volume0[i] = plan.volume;
         stress[i] = Matrix::<D>::zeros();
+        if let Some(zz) = stress_zz.get_mut(i) {
+            *zz = 0.0;
+        }
         if let Some(b) = affine.get_mut(i) {
             *b = Matrix::<D>::zeros();
         }

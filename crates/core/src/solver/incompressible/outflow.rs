@@ -89,6 +89,7 @@ where
         mass,
         volume0,
         stress,
+        stress_zz,
         affine,
         velocity_gradient,
         shared,
@@ -113,6 +114,9 @@ where
             volume0[i] = 0.0;
             velocity[i] = Vector::<D>::zeros();
             stress[i] = Matrix::<D>::zeros();
+            if let Some(zz) = stress_zz.get_mut(i) {
+                *zz = 0.0;
+            }
             if let Some(b) = affine.get_mut(i) {
                 *b = Matrix::<D>::zeros();
             }
