@@ -13,11 +13,22 @@ fn params() -> ElasticParameters {
 }
 
 fn stress_of<L: ConstitutiveLaw, const D: usize>(law: &L, f: Matrix<D>) -> (Matrix<D>, f64) {
+    update_of(law, f, &[], &mut [])
+}
+
+/// One particle's update at `f` with `stretch` across the plane (empty: 1), σzz written to
+/// `zz` (empty: not asked); the stress and the strain energy.
+fn update_of<L: ConstitutiveLaw, const D: usize>(
+    law: &L,
+    f: Matrix<D>,
+    stretch: &[f64],
+    zz: &mut [f64],
+) -> (Matrix<D>, f64) {
     let fs = [f];
     let mut stress = [Matrix::<D>::zeros()];
     let stats = law.update_stress(StressBatch {
-        out_of_plane_stretch: &[],
-        out_of_plane_stress: &mut [],
+        out_of_plane_stretch: stretch,
+        out_of_plane_stress: zz,
         dt: 0.0,
         deformation_gradient: &fs,
         velocity_gradient: &[],
@@ -135,24 +146,9 @@ fn plane_strain_stress_of<L: ConstitutiveLaw>(
     f: Matrix<2>,
     stretch: f64,
 ) -> (Matrix<2>, f64, f64) {
-    let fs = [f];
-    let mut stress = [Matrix::<2>::zeros()];
     let mut zz = [f64::NAN];
-    let stats = law.update_stress(StressBatch {
-        out_of_plane_stretch: &[stretch],
-        out_of_plane_stress: &mut zz,
-        dt: 0.0,
-        deformation_gradient: &fs,
-        velocity_gradient: &[],
-        volume0: &[1.0],
-        stress: &mut stress,
-        state: StateSlices {
-            fields: std::array::from_fn(|_| &mut [][..]),
-        },
-        shared: [&[]; 4],
-        plastic_work: &mut [],
-    });
-    (stress[0], zz[0], stats.strain_energy)
+    let (stress, energy) = update_of(law, f, &[stretch], &mut zz);
+    (stress, zz[0], energy)
 }
 
 /// Asserts that `law`'s 2D update at `f` with stretch `s` across the plane is its 3D update

@@ -393,7 +393,6 @@ fn mixture_plastic_work_closes_the_energy_balance_in_shear() {
 /// and σzz follow the 3D stress.
 #[test]
 fn a_2d_mixture_is_the_3d_law_with_its_stretch_across_the_plane() {
-    use mpm_core::material::{ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StressBatch};
     use mpm_core::math::{Matrix, embed3};
     for tau in [None, Some(5.0)] {
         let law = test_mixture(tau);
@@ -414,59 +413,25 @@ fn a_2d_mixture_is_the_3d_law_with_its_stretch_across_the_plane() {
             let t = n as f64 / 10.0;
             let f = Matrix::<2>::new(1.0 + 0.003 * t, 0.002 * t, -0.001 * t, 1.0 - 0.002 * t);
             let s = 1.0 - 0.004 * t;
-            let mut stress2 = [Matrix::<2>::zeros()];
             let mut zz = [f64::NAN];
-            let mut stress3 = [Matrix::<3>::zeros()];
-            {
-                let [p, q, r] = &mut state2;
-                let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
-                fields[0] = p;
-                fields[1] = q;
-                if tau.is_some() {
-                    fields[2] = r;
-                }
-                law.update_stress(StressBatch {
-                    out_of_plane_stretch: &[s],
-                    out_of_plane_stress: &mut zz,
-                    dt,
-                    deformation_gradient: &[f],
-                    velocity_gradient: &[],
-                    volume0: &[1.0],
-                    stress: &mut stress2,
-                    state: StateSlices { fields },
-                    shared: [&fraction[..], &[], &[], &[]],
-                    plastic_work: &mut [],
-                });
-            }
-            {
-                let [p, q, r] = &mut state3;
-                let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
-                fields[0] = p;
-                fields[1] = q;
-                if tau.is_some() {
-                    fields[2] = r;
-                }
-                law.update_stress(StressBatch {
-                    out_of_plane_stretch: &[],
-                    out_of_plane_stress: &mut [],
-                    dt,
-                    deformation_gradient: &[embed3(&f, s)],
-                    velocity_gradient: &[],
-                    volume0: &[1.0],
-                    stress: &mut stress3,
-                    state: StateSlices { fields },
-                    shared: [&fraction[..], &[], &[], &[]],
-                    plastic_work: &mut [],
-                });
-            }
-            let full = stress3[0];
+            let stress2 = mixture_step(&law, tau, &mut state2, f, &[s], &mut zz, &fraction, dt);
+            let full = mixture_step(
+                &law,
+                tau,
+                &mut state3,
+                embed3(&f, s),
+                &[],
+                &mut [],
+                &fraction,
+                dt,
+            );
             let scale = full.norm();
             for r in 0..2 {
                 for c in 0..2 {
                     assert!(
-                        (stress2[0][(r, c)] - full[(r, c)]).abs() < 1e-9 * scale,
+                        (stress2[(r, c)] - full[(r, c)]).abs() < 1e-9 * scale,
                         "τ {tau:?}, step {n}: σ{r}{c} {} against {}",
-                        stress2[0][(r, c)],
+                        stress2[(r, c)],
                         full[(r, c)]
                     );
                 }
@@ -479,4 +444,41 @@ fn a_2d_mixture_is_the_3d_law_with_its_stretch_across_the_plane() {
             );
         }
     }
+}
+
+/// One step of a single mixture particle with state `[previous_F, solid_stress, pressure]`
+/// (the pressure only with `tau`), stretch across the plane and σzz as in `StressBatch`.
+#[allow(clippy::too_many_arguments)]
+fn mixture_step<const D: usize>(
+    law: &crate::mixture::PhaseMixture,
+    tau: Option<f64>,
+    state: &mut [Vec<f64>; 3],
+    f: mpm_core::math::Matrix<D>,
+    stretch: &[f64],
+    zz: &mut [f64],
+    fraction: &[f64],
+    dt: f64,
+) -> mpm_core::math::Matrix<D> {
+    use mpm_core::material::{ConstitutiveLaw, MAX_STATE_FIELDS, StateSlices, StressBatch};
+    let [p, q, r] = state;
+    let mut fields: [&mut [f64]; MAX_STATE_FIELDS] = Default::default();
+    fields[0] = p;
+    fields[1] = q;
+    if tau.is_some() {
+        fields[2] = r;
+    }
+    let mut stress = [mpm_core::math::Matrix::<D>::zeros()];
+    law.update_stress(StressBatch {
+        out_of_plane_stretch: stretch,
+        out_of_plane_stress: zz,
+        dt,
+        deformation_gradient: &[f],
+        velocity_gradient: &[],
+        volume0: &[1.0],
+        stress: &mut stress,
+        state: StateSlices { fields },
+        shared: [fraction, &[], &[], &[]],
+        plastic_work: &mut [],
+    });
+    stress[0]
 }

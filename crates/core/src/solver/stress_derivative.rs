@@ -22,22 +22,22 @@ pub(crate) fn all_analytic<const D: usize>(particles: &Particles<D>) -> bool {
         .all(|g| g.material.has_stress_derivative())
 }
 
-/// Scratch of the derivative with a free strain: the mechanical F and direction, and the
-/// stretch across the plane where the free strain acts there (as the stress update's).
+/// Scratch of the derivative with a free strain: the mechanical F and direction.
 #[derive(Default)]
 pub(crate) struct DerivativeScratch<const D: usize> {
     mechanical: Vec<Matrix<D>>,
     direction: Vec<Matrix<D>>,
-    stretch: Vec<f64>,
 }
 
 /// Writes dσ_p = ∂σ/∂F : `direction[p]` at the particles' current F and stress into `out`;
-/// `state` is each group's material state (per field) that the stress update started from.
+/// `state` is each group's material state (per field) that the stress update started from,
+/// `stretch` the stretch across the plane it used (`StressScratch::last_stretch`), held.
 /// Only for particles whose laws all have the derivative ([`all_analytic`]).
 pub(crate) fn stress_derivative<const D: usize>(
     particles: &Particles<D>,
     state: &[Vec<Vec<f64>>],
     direction: &[Matrix<D>],
+    stretch: &[f64],
     dt: f64,
     scratch: &mut DerivativeScratch<D>,
     out: &mut [Matrix<D>],
@@ -45,21 +45,6 @@ pub(crate) fn stress_derivative<const D: usize>(
     dyn crate::material::Material: DimensionDispatch<D>,
 {
     let n = particles.len();
-    let across_plane = particles.groups.iter().any(|g| g.free_strain_across_plane);
-    scratch.stretch.clear();
-    if let Some(fs) = particles.shared.get(FREE_STRAIN).filter(|_| across_plane) {
-        scratch.stretch.resize(n, 1.0);
-        scratch
-            .stretch
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(p, s)| {
-                if super::stress_update::free_strain_across_plane(&particles.groups, p) {
-                    *s = 1.0 / (1.0 + fs[p]);
-                }
-            });
-    }
-    let stretch = &scratch.stretch;
     let (kinematic, direction): (&[Matrix<D>], &[Matrix<D>]) =
         match particles.shared.get(FREE_STRAIN) {
             Some(fs) => {

@@ -56,6 +56,14 @@ impl<const D: usize> StressScratch<D> {
         }
     }
 
+    /// The stretch across the plane each particle's law saw in the last update (empty: 1).
+    pub fn last_stretch(&self) -> &[f64] {
+        match &self.generalized {
+            Some(g) => &g.stretch,
+            None => &self.stretch,
+        }
+    }
+
     /// Free strain each particle's stress had at the last update (empty without one).
     pub fn applied(&self) -> &[f64] {
         &self.applied

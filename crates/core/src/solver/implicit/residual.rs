@@ -453,6 +453,7 @@ fn tangent_product_analytic<const D: usize, K: Kernel>(
         &sim.particles,
         &work.state_n,
         &work.direction,
+        sim.stress_scratch.last_stretch(),
         dt,
         &mut work.derivative_scratch,
         &mut work.stress_change,
