@@ -19,9 +19,10 @@ pub struct MaterialGroup {
     /// The factor the stress update applies to the free strain in the plane (1, or the
     /// law's plane-strain expansion with `solver.free_strain_2d: "plane_strain"`).
     pub free_strain_factor: f64,
-    /// Whether the free strain also stretches this group's particles across the plane (2D
-    /// with `solver.free_strain_2d: "plane_strain"` and a law that says
-    /// `plane_strain_stress`); then `free_strain_factor` is 1.
+    /// Whether this group's law takes a stretch across the plane (2D with
+    /// `solver.free_strain_2d` `plane_strain` or `generalized_plane_strain`, and a law that
+    /// says `plane_strain_stress`): its free strain's, and generalized plane strain's ε₀.
+    /// Then `free_strain_factor` is 1.
     pub free_strain_across_plane: bool,
     /// The law's declared state fields for this group's particles, one `Vec` per field
     /// (`components` numbers per particle).
