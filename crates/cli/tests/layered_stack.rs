@@ -107,4 +107,17 @@ fn the_cooled_stack_as_a_section_contracts_along_its_length_too() {
     }
     let (die_zz, _) = comparison(&m, "layer_2_mean_stress_zz");
     assert!(die_zz < 0.0, "the die's σzz {die_zz}");
+    // The run reports the section's strain along z and its solve.
+    let report = |k: &str| m.physics[&format!("generalized_plane_strain.{k}")];
+    println!(
+        "|ε_zz| {:.3e}, at most {} evaluations a solve",
+        report("largest_strain"),
+        report("most_evaluations")
+    );
+    assert!(
+        report("largest_strain") > 1e-4,
+        "the stack contracts along z"
+    );
+    assert!(report("most_evaluations") >= 2.0);
+    assert_eq!(report("unbalanced"), 0.0);
 }

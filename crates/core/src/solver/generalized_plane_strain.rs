@@ -32,6 +32,11 @@ pub(crate) struct GeneralizedPlaneStrain {
     pub stretch: Vec<f64>,
     /// The groups' state at the update's start, put back before each retry.
     saved: Vec<Vec<f64>>,
+    /// Most evaluations one solve took so far in this run (or since its resume).
+    pub most_evaluations: usize,
+    /// Whether a solve ended at [`MAX_EVALUATIONS`] with the force not balanced (it keeps
+    /// its last ε₀); the run reports it (`generalized_plane_strain.unbalanced`).
+    pub unbalanced: bool,
 }
 
 /// Where the solve stands after an evaluation: the next ε₀ to try, or none when solved.
@@ -112,7 +117,10 @@ impl GeneralizedPlaneStrain {
             count,
         });
         self.strain = strain;
-        if force.abs() <= TOLERANCE * scale || count >= MAX_EVALUATIONS {
+        let balanced = force.abs() <= TOLERANCE * scale;
+        if balanced || count >= MAX_EVALUATIONS {
+            self.most_evaluations = self.most_evaluations.max(count);
+            self.unbalanced |= !balanced;
             return None;
         }
         if let Some((e0, f0)) = before
@@ -164,6 +172,8 @@ mod tests {
                 force(gps.strain)
             );
             assert!(evaluations <= 8, "{evaluations} evaluations");
+            assert_eq!(gps.most_evaluations, evaluations);
+            assert!(!gps.unbalanced);
         }
     }
 }

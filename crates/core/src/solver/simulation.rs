@@ -366,6 +366,25 @@ where
             self.clock.add_seconds(StepStage::Solve, rest);
             self.mode = Some(mode);
         }
+        if let Some(g) = self
+            .stress_scratch
+            .generalized
+            .as_ref()
+            .filter(|g| g.most_evaluations > 0)
+        {
+            // Generalized plane strain: how far the section contracts or stretches along z,
+            // and how its solve went (nothing while no stress update ran: mechanics off).
+            let report = &mut self.report;
+            report.record_max("generalized_plane_strain.largest_strain", g.strain.abs());
+            report.record_max(
+                "generalized_plane_strain.most_evaluations",
+                g.most_evaluations as f64,
+            );
+            report.record_max(
+                "generalized_plane_strain.unbalanced",
+                f64::from(u8::from(g.unbalanced)),
+            );
+        }
         self.time += dt;
         self.steps += 1;
     }
