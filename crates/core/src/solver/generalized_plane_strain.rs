@@ -95,11 +95,6 @@ impl GeneralizedPlaneStrain {
         (net, scale)
     }
 
-    /// Starts a solve from the last update's ε₀.
-    pub fn start(&self) -> f64 {
-        self.strain
-    }
-
     /// After evaluating `strain` with net force `force` (of magnitude sum `scale`): the next
     /// ε₀ to try, or `None` when the force is balanced (or the evaluations are spent); then
     /// [`GeneralizedPlaneStrain::strain`] holds the answer.
@@ -156,7 +151,7 @@ mod tests {
         for force in laws {
             let mut gps = GeneralizedPlaneStrain::default();
             let mut step = None;
-            let mut strain = gps.start();
+            let mut strain = gps.strain;
             let mut evaluations = 0;
             while let Some(next) = {
                 evaluations += 1;

@@ -225,7 +225,8 @@ where
             // Solve ε₀ for no net force across the plane (`generalized_plane_strain.rs`).
             gps.save(groups);
             let mut step = None;
-            let mut strain = gps.start();
+            // From the last update's ε₀.
+            let mut strain = gps.strain;
             loop {
                 gps.fill(strain, &scratch.stretch, groups, n);
                 let stats = laws.run(&gps.stretch, groups, &mut scratch.group_wave_speed);
