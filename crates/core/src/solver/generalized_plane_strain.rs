@@ -6,7 +6,9 @@
 //! wall. Every particle whose law says `plane_strain_stress` gets the stretch
 //! (1 + ε₀)/(1 + e) across the plane (e its free strain); the stress update solves for ε₀
 //! each time it runs by secant steps on the net force, putting the laws' state back before
-//! each retry (`stress_update.rs`). The laws' own tangents hold ε₀ fixed.
+//! each retry (`stress_update.rs`). The laws' own tangents hold ε₀ fixed; the implicit
+//! mode holds it through its difference probes and adds its coupling to the tangent as a
+//! rank-one term (`implicit/out_of_plane.rs`).
 
 use super::parallel::ordered_particle_sum;
 use crate::math::{Matrix, determinant};
@@ -37,6 +39,9 @@ pub(crate) struct GeneralizedPlaneStrain {
     /// Whether a solve ended at [`MAX_EVALUATIONS`] with the force not balanced (it keeps
     /// its last ε₀); the run reports it (`generalized_plane_strain.unbalanced`).
     pub unbalanced: bool,
+    /// ε₀ to evaluate at instead of solving (a difference probe of the implicit tangent,
+    /// which perturbs F or ε₀ alone); `strain` and `slope` are then left as they are.
+    pub held: Option<f64>,
 }
 
 /// Where the solve stands after an evaluation: the next ε₀ to try, or none when solved.

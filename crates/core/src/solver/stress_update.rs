@@ -7,7 +7,7 @@ use super::parallel::{SharedSlice, ordered_particle_sum, ordered_reduce};
 use super::stats::ParticleFault;
 use crate::material::{BatchStats, MAX_SHARED_READS, MAX_STATE_FIELDS, StateSlices, StressBatch};
 use crate::math::Matrix;
-use crate::particles::Particles;
+use crate::particles::{MaterialGroup, Particles};
 use crate::physics::{FREE_STRAIN, PLASTIC_WORK};
 use crate::solver::DimensionDispatch;
 
@@ -61,6 +61,25 @@ impl<const D: usize> StressScratch<D> {
         match &self.generalized {
             Some(g) => &g.stretch,
             None => &self.stretch,
+        }
+    }
+
+    /// ε₀ of the last solve with generalized plane strain (none without it).
+    pub fn out_of_plane_strain(&self) -> Option<f64> {
+        self.generalized.as_ref().map(|g| g.strain)
+    }
+
+    /// Makes the updates evaluate at ε₀ = `strain` instead of solving for it (`None`: solve
+    /// again), and sets the stretch [`StressScratch::last_stretch`] gives for it, so that
+    /// what a probe changed is undone by `hold_out_of_plane_strain(None)` without an update.
+    /// Nothing without generalized plane strain.
+    pub fn hold_out_of_plane_strain(&mut self, strain: Option<f64>, groups: &[MaterialGroup]) {
+        if let Some(g) = &mut self.generalized {
+            g.held = strain;
+            if !g.stretch.is_empty() {
+                let n = g.stretch.len();
+                g.fill(strain.unwrap_or(g.strain), &self.stretch, groups, n);
+            }
         }
     }
 
@@ -221,6 +240,11 @@ where
         work_out: has_work.then_some(work_out),
     };
     let stats = match scratch.generalized.as_mut().filter(|_| has_zz) {
+        Some(gps) if gps.held.is_some() => {
+            // A probe at a given ε₀: one evaluation, no solve.
+            gps.fill(gps.held.unwrap_or(gps.strain), &scratch.stretch, groups, n);
+            laws.run(&gps.stretch, groups, &mut scratch.group_wave_speed)
+        }
         Some(gps) => {
             // Solve ε₀ for no net force across the plane (`generalized_plane_strain.rs`).
             gps.save(groups);

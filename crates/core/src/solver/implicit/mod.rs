@@ -8,6 +8,7 @@
 //! - `residual`: the out-of-balance force of a trial increment (each material's own stress
 //!   update, so third-party plugins work unchanged);
 //! - `newton`: Newton–Krylov iterations with a line search;
+//! - `out_of_plane`: generalized plane strain's rank-one term of the tangent;
 //! - `finish`: the particle update once a step has converged.
 //!
 //! A step that does not converge is halved and retried (free strains and the gravity ramp
@@ -17,6 +18,7 @@
 mod fbar;
 mod finish;
 mod newton;
+mod out_of_plane;
 mod preconditioner;
 mod residual;
 mod tangent_estimate;

@@ -204,6 +204,7 @@ where
         direction.fill(0.0);
         let inverse_diagonal = std::mem::take(&mut work.inverse_diagonal);
         super::residual::linearise_at(sim, work);
+        super::out_of_plane::measure(sim, work, dt);
         let mut apply = |v: &[f64], out: &mut [f64]| {
             if v.iter().all(|x| *x == 0.0) {
                 out.fill(0.0);

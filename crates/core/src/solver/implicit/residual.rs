@@ -221,7 +221,7 @@ where
 
 /// Scatters Σ_p Vₙ P_p ∇w into `out` (unfolded) for the first Piola stress `piola(p)`,
 /// threads writing buffers of their own; returns the norm of the individual contributions.
-fn scatter_with<const D: usize>(
+pub(super) fn scatter_with<const D: usize>(
     work: &mut Workspace<D>,
     n: usize,
     out: &mut [f64],
@@ -279,8 +279,8 @@ fn cofactor_derivative<const D: usize>(a: &Matrix<D>, g: &Matrix<D>) -> Matrix<D
     }
 }
 
-/// Saves the particles' stress at the current iterate: the point the tangent products
-/// linearise about (∇Δu there is in `work.grad_du`).
+/// Saves the particles' stress (and σzz in 2D) at the current iterate: the point the
+/// tangent products linearise about (∇Δu there is in `work.grad_du`).
 pub(super) fn linearise_at<const D: usize, K: Kernel>(
     sim: &Simulation<D, K>,
     work: &mut Workspace<D>,
@@ -289,6 +289,8 @@ pub(super) fn linearise_at<const D: usize, K: Kernel>(
 {
     work.stress_cur.clear();
     work.stress_cur.extend_from_slice(&sim.particles.stress);
+    work.zz_cur.clear();
+    work.zz_cur.extend_from_slice(&sim.particles.stress_zz);
 }
 
 /// The tangent applied to a direction `v`: J v = ∂R/∂Δu · v at the iterate saved by
@@ -319,6 +321,7 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
     work.grad_v.resize(n, Matrix::<D>::zeros());
     work.step_of.resize(n, 0.0);
     direction_gradients(work);
+    let row_dot = work.out_of_plane.row_dot(a_bar_change(work));
     {
         let f_out = SharedSlice::new(&mut sim.particles.deformation_gradient);
         let l_out = SharedSlice::new(&mut sim.particles.velocity_gradient);
@@ -343,7 +346,13 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
         });
     }
     work.restore_state(sim);
+    // ε₀ held: its response is the rank-one term (`out_of_plane.rs`).
+    let strain = sim.stress_scratch.out_of_plane_strain();
+    sim.stress_scratch
+        .hold_out_of_plane_strain(strain, &sim.particles.groups);
     update_stress(&mut sim.particles, dt, &mut sim.stress_scratch);
+    sim.stress_scratch
+        .hold_out_of_plane_strain(None, &sim.particles.groups);
     let stress = &sim.particles.stress;
     let (grad_v, step_of, grad_du, stress_cur) = (
         std::mem::take(&mut work.grad_v),
@@ -365,6 +374,7 @@ pub(super) fn tangent_product<const D: usize, K: Kernel>(
     work.grad_du = grad_du;
     work.stress_cur = stress_cur;
     finish_product(work, v, inertia, out);
+    work.out_of_plane.add(row_dot, out);
 }
 
 /// The common end of a tangent product: fold the ghosts, add the Newmark mass term, project.
@@ -437,6 +447,7 @@ fn tangent_product_analytic<const D: usize, K: Kernel>(
     work.direction.resize(n, Matrix::<D>::zeros());
     work.stress_change.resize(n, Matrix::<D>::zeros());
     direction_gradients(work);
+    let row_dot = work.out_of_plane.row_dot(a_bar_change(work));
     // δF = δĀ Fₙ (∇v Fₙ without F-bar).
     if work.fbar.is_some() {
         work.direction
@@ -474,6 +485,7 @@ fn tangent_product_analytic<const D: usize, K: Kernel>(
     work.grad_du = grad_du;
     work.stress_cur = stress_cur;
     finish_product(work, v, inertia, out);
+    work.out_of_plane.add(row_dot, out);
 }
 
 /// The internal force of the particles' current stress with no increment (∇Δu = 0),

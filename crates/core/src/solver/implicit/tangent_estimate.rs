@@ -65,6 +65,11 @@ pub(super) fn probe<const D: usize, K: Kernel>(
     work.tangent
         .resize(if anisotropic { n } else { 0 }, [0.0; 36]);
     let rate = !sim.particles.velocity_gradient.is_empty();
+    // ε₀ held at the iterate's: each particle's own tangent, not the section's response to
+    // all of them strained at once (that is `out_of_plane.rs`'s rank-one term).
+    let strain = sim.stress_scratch.out_of_plane_strain();
+    sim.stress_scratch
+        .hold_out_of_plane_strain(strain, &sim.particles.groups);
     for probe in 0..probes {
         let mut g = Matrix::<D>::zeros();
         let (j, l) = if anisotropic {
@@ -140,6 +145,11 @@ pub(super) fn probe<const D: usize, K: Kernel>(
         }
     }
     // Back to the iterate (the material state is restored before every later update).
+    sim.stress_scratch
+        .hold_out_of_plane_strain(None, &sim.particles.groups);
+    if work.zz_cur.len() == n {
+        sim.particles.stress_zz.copy_from_slice(&work.zz_cur);
+    }
     for p in 0..n {
         let a = a_bar(work, p);
         sim.particles.deformation_gradient[p] = a * work.f_n[p];

@@ -129,8 +129,11 @@ pub(super) struct Workspace<const D: usize> {
     pub full: Vec<f64>,
     /// A Krylov direction with the ghosts mirrored (scratch of a tangent product).
     pub full_v: Vec<f64>,
-    /// Stress at the iterate the tangent linearises about.
+    /// Stress, and σzz in 2D, at the iterate the tangent linearises about.
     pub stress_cur: Vec<Matrix<D>>,
+    pub zz_cur: Vec<f64>,
+    /// Generalized plane strain's rank-one term of the tangent (inactive without it).
+    pub out_of_plane: super::out_of_plane::OutOfPlaneCoupling<D>,
     /// Gradient of the direction, and the difference step, per particle (tangent product).
     pub grad_v: Vec<Matrix<D>>,
     pub step_of: Vec<f64>,
