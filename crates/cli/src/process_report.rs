@@ -62,6 +62,14 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
                     last.name
                 ));
             }
+            if let Some((along, layer)) = f.critical_layer()
+                && let Some(n) = layer.cycles_to_crack
+            {
+                lines.push(format!(
+                    "fatigue life at the interface layer: {material} by {along}, {n:.0} cycles at the work per cycle of stage {}",
+                    last.name
+                ));
+            }
         }
     }
     lines
@@ -77,6 +85,15 @@ fn fatigue_line(material: &str, f: &FatigueFigures) -> String {
     );
     if let Some(n) = f.cycles_to_crack {
         line += &format!("; {n:.0} cycles to crack initiation were every cycle like it");
+    }
+    for (along, layer) in &f.layers {
+        line += &format!(
+            "; its layer by {along} {:.4} MJ/m³",
+            layer.work_in_stage / 1e6
+        );
+        if let Some(n) = layer.cycles_to_crack {
+            line += &format!(", {n:.0} cycles");
+        }
     }
     line
 }
@@ -156,6 +173,7 @@ fn position(x: &[f64; 3]) -> String {
 mod tests {
     use super::*;
     use mpm_core::damage_measures::FailureOnset;
+    use mpm_core::fatigue_measures::LayerFigures;
 
     fn stage(name: &str, onset: Option<f64>) -> StageSummary {
         let mut s = StageSummary {
@@ -219,6 +237,16 @@ mod tests {
                 work: 0.5e6,
                 work_in_stage: 0.2e6,
                 cycles_to_crack: Some(2631.6),
+                layers: [(
+                    "silicon".to_string(),
+                    LayerFigures {
+                        work: 0.9e6,
+                        work_in_stage: 0.4e6,
+                        cycles_to_crack: Some(1315.8),
+                        volume: 1e-9,
+                    },
+                )]
+                .into(),
             },
         );
         let lines = process_report(&Metrics {
@@ -228,14 +256,20 @@ mod tests {
         assert!(
             lines.contains(
                 &"cycle-1: solder inelastic work 0.2000 MJ/m³ in the stage (0.5000 in all, volume \
-              average); 2632 cycles to crack initiation were every cycle like it"
+              average); 2632 cycles to crack initiation were every cycle like it; its layer by \
+              silicon 0.4000 MJ/m³, 1316 cycles"
                     .to_string()
-            )
+            ),
+            "{lines:?}"
         );
         assert_eq!(
-            lines.last().unwrap(),
-            "fatigue life: solder, 2632 cycles to crack initiation at the work per cycle of \
-             stage cycle-1"
+            lines[lines.len() - 2..],
+            [
+                "fatigue life: solder, 2632 cycles to crack initiation at the work per cycle of \
+                 stage cycle-1",
+                "fatigue life at the interface layer: solder by silicon, 1316 cycles at the work \
+                 per cycle of stage cycle-1"
+            ]
         );
     }
 }

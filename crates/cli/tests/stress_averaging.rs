@@ -120,3 +120,32 @@ fn a_bad_radius_is_refused_at_its_path() {
         );
     }
 }
+
+#[test]
+fn a_bad_fatigue_layer_is_refused_at_its_paths() {
+    for (value, path) in [
+        (
+            r#"{"thickness":0,"along":["silicon"]}"#,
+            "output.fatigue_layer.thickness",
+        ),
+        (
+            r#"{"thickness":1,"along":["silicon"]}"#,
+            "output.fatigue_layer.thickness",
+        ),
+        (
+            r#"{"thickness":1e-5,"along":[]}"#,
+            "output.fatigue_layer.along",
+        ),
+        (
+            r#"{"thickness":1e-5,"along":["silicon","pad"]}"#,
+            "output.fatigue_layer.along[1]",
+        ),
+        (r#"{"thickness":1e-5}"#, "output.fatigue_layer"),
+    ] {
+        let issues = invalid_example(EXAMPLE, &[&format!("output.fatigue_layer={value}")]);
+        assert!(
+            issues.iter().any(|i| i.starts_with(path)),
+            "{value}: {issues:?}"
+        );
+    }
+}

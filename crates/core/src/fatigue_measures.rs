@@ -4,14 +4,18 @@
 //! over the stage, and, when the law has a fatigue law and the stage is one thermal
 //! cycle, the cycles to crack initiation that increase gives (energy-based solder fatigue
 //! in the manner of Darveaux and Syed, who average the work over the joint's volume).
+//! With `output.fatigue_layer` the same figures for the joint's layers next to the named
+//! materials (Darveaux's interface layer, where the crack runs).
 
+use crate::cell_hash::CellHash;
 use crate::material::INELASTIC_WORK;
 use crate::particles::Particles;
+use crate::scene::FatigueLayer;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// One material's inelastic work over a stage.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FatigueFigures {
     /// Inelastic work density accumulated since the run began, averaged over the
     /// material's reference volume, J/m³.
@@ -22,15 +26,49 @@ pub struct FatigueFigures {
     /// (`None` without one, or without work in the stage).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cycles_to_crack: Option<f64>,
+    /// The same figures averaged over the material's layer next to each material of
+    /// `output.fatigue_layer.along` that it touches (empty without the setting).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub layers: BTreeMap<String, LayerFigures>,
 }
 
-/// The fatigue figures of every material whose law keeps [`INELASTIC_WORK`], from its
-/// average at the stage's start, `work_before` (0 for a material not in it).
+/// The inelastic work of a joint's layer next to one material, over a stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LayerFigures {
+    /// Work density accumulated since the run began, averaged over the layer's reference
+    /// volume, J/m³.
+    pub work: f64,
+    /// Its increase over this stage, J/m³.
+    pub work_in_stage: f64,
+    /// Cycles to crack initiation at `work_in_stage` per cycle (`None` as above).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycles_to_crack: Option<f64>,
+    /// The layer's reference volume, m³ (m² in 2D).
+    pub volume: f64,
+}
+
+impl FatigueFigures {
+    /// The layer with the most work in the stage, and its figures (none without layers).
+    pub fn critical_layer(&self) -> Option<(&str, &LayerFigures)> {
+        self.layers
+            .iter()
+            .max_by(|a, b| a.1.work_in_stage.total_cmp(&b.1.work_in_stage))
+            .map(|(name, f)| (name.as_str(), f))
+    }
+}
+
+/// The fatigue figures of every material whose law keeps [`INELASTIC_WORK`], from the
+/// figures at the stage's start, `before` (none for a material or layer not in it), and,
+/// with `layer`, of its layers.
 pub fn fatigue_figures<const D: usize>(
     particles: &Particles<D>,
-    work_before: &BTreeMap<String, f64>,
+    before: &BTreeMap<String, FatigueFigures>,
+    layer: Option<&FatigueLayer>,
 ) -> BTreeMap<String, FatigueFigures> {
-    let mut sums: BTreeMap<&str, (f64, f64, &dyn crate::material::Material)> = BTreeMap::new();
+    let mut out: BTreeMap<String, FatigueFigures> = BTreeMap::new();
+    // Weighted work and volume per material, its layers', and its law.
+    type Sums<'a> = (f64, f64, BTreeMap<&'a str, (f64, f64)>);
+    let mut sums: BTreeMap<&str, (Sums, &dyn crate::material::Material)> = BTreeMap::new();
     for group in &particles.groups {
         let Some(field) = group
             .material
@@ -42,23 +80,82 @@ pub fn fatigue_figures<const D: usize>(
         };
         let entry = sums
             .entry(group.name.as_str())
-            .or_insert((0.0, 0.0, group.material.as_ref()));
-        for (k, &w) in group.state[field].iter().enumerate() {
+            .or_insert(((0.0, 0.0, BTreeMap::new()), group.material.as_ref()));
+        let work = &group.state[field];
+        for (k, &w) in work.iter().enumerate() {
             let v0 = particles.volume0[group.range.start + k].abs();
-            entry.0 += w * v0;
-            entry.1 += v0;
+            entry.0.0 += w * v0;
+            entry.0.1 += v0;
+        }
+        for along in layer.iter().flat_map(|l| l.along.iter()) {
+            let members = layer_members(particles, group.range.clone(), along, layer);
+            let slot = entry.0.2.entry(along.as_str()).or_insert((0.0, 0.0));
+            for p in members {
+                let v0 = particles.volume0[p].abs();
+                slot.0 += work[p - group.range.start] * v0;
+                slot.1 += v0;
+            }
         }
     }
-    sums.into_iter()
-        .map(|(name, (weighted, volume, material))| {
-            let work = if volume > 0.0 { weighted / volume } else { 0.0 };
-            let work_in_stage = work - work_before.get(name).copied().unwrap_or(0.0);
-            let figures = FatigueFigures {
-                work,
-                work_in_stage,
-                cycles_to_crack: material.cycles_to_crack(work_in_stage),
-            };
-            (name.to_string(), figures)
+    let mean = |weighted: f64, volume: f64| if volume > 0.0 { weighted / volume } else { 0.0 };
+    for (name, ((weighted, volume, layers), material)) in sums {
+        let previous = before.get(name);
+        let work = mean(weighted, volume);
+        let work_in_stage = work - previous.map_or(0.0, |f| f.work);
+        let layers = layers
+            .into_iter()
+            .filter(|(_, (_, v))| *v > 0.0)
+            .map(|(along, (w, v))| {
+                let work = mean(w, v);
+                let start = previous
+                    .and_then(|f| f.layers.get(along))
+                    .map_or(0.0, |l| l.work);
+                let figures = LayerFigures {
+                    work,
+                    work_in_stage: work - start,
+                    cycles_to_crack: material.cycles_to_crack(work - start),
+                    volume: v,
+                };
+                (along.to_string(), figures)
+            })
+            .collect();
+        let figures = FatigueFigures {
+            work,
+            work_in_stage,
+            cycles_to_crack: material.cycles_to_crack(work_in_stage),
+            layers,
+        };
+        out.insert(name.to_string(), figures);
+    }
+    out
+}
+
+/// The particles of `range` (one group of the joint's material) within the layer's
+/// thickness of a particle of material `along`, in order. Allocates a cell hash of the
+/// `along` particles; called once per stage end.
+fn layer_members<const D: usize>(
+    particles: &Particles<D>,
+    range: std::ops::Range<usize>,
+    along: &str,
+    layer: Option<&FatigueLayer>,
+) -> Vec<usize> {
+    let Some(thickness) = layer.map(|l| l.thickness) else {
+        return Vec::new();
+    };
+    let indices = particles
+        .groups
+        .iter()
+        .filter(|g| g.name == along)
+        .flat_map(|g| g.range.clone());
+    let hash = CellHash::new(thickness, &particles.position, indices);
+    if hash.is_empty() {
+        return Vec::new();
+    }
+    range
+        .filter(|&p| {
+            let x = particles.position[p];
+            hash.near(&x)
+                .any(|q| (particles.position[q] - x).norm() <= thickness)
         })
         .collect()
 }

@@ -5,6 +5,7 @@
 //! `docs/ARCHITECTURE.md` for the step pipeline.
 
 pub mod boundary;
+mod cell_hash;
 pub mod checkpoint;
 pub mod damage_measures;
 pub mod energy_ledger;

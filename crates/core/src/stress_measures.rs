@@ -9,10 +9,11 @@
 //! grows as r^−λ with λ < 1). This is the area method of the theory of critical distances:
 //! the radius is a length of the material, not of the mesh.
 
+use crate::cell_hash::CellHash;
 use crate::math::{Matrix, determinant};
 use crate::particles::Particles;
 use rayon::prelude::*;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 
 /// Von Mises stress of a stress tensor; in 2D (plane strain) `zz` is σzz, the stress across
 /// the plane (the shears out of the plane are zero there). `zz` is unused in 3D.
@@ -55,9 +56,6 @@ pub fn averaged_peak_von_mises<const D: usize>(
     radius: f64,
 ) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
-    let cell = |x: &crate::math::Vector<D>| -> [i64; D] {
-        std::array::from_fn(|k| (x[k] / radius).floor() as i64)
-    };
     for group in &particles.groups {
         let range = group.range.clone();
         let stress: Vec<f64> = range
@@ -68,39 +66,17 @@ pub fn averaged_peak_von_mises<const D: usize>(
             .clone()
             .map(|p| determinant(&particles.deformation_gradient[p]) * particles.volume0[p])
             .collect();
-        let mut cells: HashMap<[i64; D], Vec<usize>> = HashMap::new();
-        for (k, p) in range.clone().enumerate() {
-            cells
-                .entry(cell(&particles.position[p]))
-                .or_default()
-                .push(k);
-        }
-        let offsets: Vec<[i64; D]> = (0..3usize.pow(D as u32))
-            .map(|mut code| {
-                std::array::from_fn(|_| {
-                    let o = (code % 3) as i64 - 1;
-                    code /= 3;
-                    o
-                })
-            })
-            .collect();
+        let hash = CellHash::new(radius, &particles.position, range.clone());
         let start = range.start;
-        let peak = (0..range.len())
+        let peak = range
             .into_par_iter()
-            .map(|k| {
-                let x = particles.position[start + k];
-                let home = cell(&x);
+            .map(|p| {
+                let x = particles.position[p];
                 let (mut weighted, mut total) = (0.0, 0.0);
-                for o in &offsets {
-                    let key: [i64; D] = std::array::from_fn(|a| home[a] + o[a]);
-                    let Some(members) = cells.get(&key) else {
-                        continue;
-                    };
-                    for &j in members {
-                        if (particles.position[start + j] - x).norm() <= radius {
-                            weighted += volume[j] * stress[j];
-                            total += volume[j];
-                        }
+                for q in hash.near(&x) {
+                    if (particles.position[q] - x).norm() <= radius {
+                        weighted += volume[q - start] * stress[q - start];
+                        total += volume[q - start];
                     }
                 }
                 if total > 0.0 { weighted / total } else { 0.0 }

@@ -27,7 +27,7 @@ pub use contact::{CohesiveLaw, ContactLaw, ContactPair, ContactSection, MAX_CONT
 pub use domain::{Contact, Domain, Side, Wall};
 pub use inflow::{INJECTED, Inflow, InflowLayout};
 pub use obstacle::{Obstacle, ObstacleShape};
-pub use output::{CheckpointSchedule, Output, StopCriteria};
+pub use output::{CheckpointSchedule, FatigueLayer, Output, StopCriteria};
 pub use solver_settings::{
     AntiLocking, EnclosedAirSettings, FreeStrain2d, GridStorage, ImplicitForm, ImplicitSettings,
     IncompressibleSettings, KernelName, KrylovMethod, Mechanics, Scheme, Solver, TangentMethod,

@@ -266,7 +266,8 @@ impl Validator {
         if let Some(contact) = &s.contact {
             contact.validate(self, s);
         }
-        s.output.validate(self, s.domain.cell_size);
+        s.output
+            .validate(self, s.domain.cell_size, s.materials.keys());
         s.stop.validate(self);
     }
 

@@ -34,7 +34,8 @@ pub(super) fn run_stages(
         resume: bool,
         tag: serde_json::Value,
         averaging_radius: Option<f64>,
-        work_before: BTreeMap<String, f64>,
+        fatigue_layer: Option<&'a crate::scene::FatigueLayer>,
+        fatigue_before: BTreeMap<String, FatigueFigures>,
     }
     impl SimulationVisitor for Stage<'_> {
         type Output = Result<(Metrics, Checkpoint, StressFigures), RunError>;
@@ -52,7 +53,7 @@ pub(super) fn run_stages(
                     .map(|r| averaged_peak_von_mises(&sim.particles, r))
                     .unwrap_or_default(),
                 damage: metrics.damage.clone(),
-                fatigue: fatigue_figures(&sim.particles, &self.work_before),
+                fatigue: fatigue_figures(&sim.particles, &self.fatigue_before, self.fatigue_layer),
             };
             Ok((metrics, end, figures))
         }
@@ -110,9 +111,9 @@ pub(super) fn run_stages(
             "removed_at_hand_over": removed_here,
         });
         // The inelastic work the stage starts from: where the stage before left it.
-        let work_before = summaries
+        let fatigue_before = summaries
             .last()
-            .map(|s| s.fatigue.iter().map(|(k, f)| (k.clone(), f.work)).collect())
+            .map(|s| s.fatigue.clone())
             .unwrap_or_default();
         let filtered;
         let stage_scene = if removed.is_empty() {
@@ -130,7 +131,8 @@ pub(super) fn run_stages(
                 resume: resumed_here,
                 tag,
                 averaging_radius: stage_scene.scene.output.stress_averaging_radius,
-                work_before,
+                fatigue_layer: stage_scene.scene.output.fatigue_layer.as_ref(),
+                fatigue_before,
             },
         )?;
         summaries.push(StageSummary {
