@@ -243,9 +243,13 @@ fn underfill_cure_runs_implicit_to_self_equilibrated_residual_stress() {
     // and ∫σyy dV = ∫ y t_y dA vanish here (the symmetry plane is x = 0, the slip wall
     // y = 0). Measured: 1e-8 and 2e-5 of ∫|σ| dV (the damped explicit relaxation at its
     // tolerance 1e-4: about 0.15 and 0.04, it is not at equilibrium). The layer's mean σxx
-    // is 54.45 MPa with the example's generalized plane strain (`solver.free_strain_2d`);
-    // in plane strain 54.8 MPa, 0.6% below the damped explicit relaxation's 55.2 MPa (with
-    // the in-plane free strain: 41.6 and 41.8 MPa).
+    // (generalized plane strain, the cure predicted and corrected around conduction) is
+    // 52.89 MPa, 0.8% above the damped explicit relaxation's 52.46 MPa at tolerance 1e-5
+    // (`--set 'solver.mechanics={"quasi_static":{"max_iterations":100000,
+    // "tolerance":0.00001}}'`, 18,993 iterations, 111 s). At its default 1e-4 the
+    // relaxation stops at 54.86 MPa: with the section's contraction along z it has not
+    // converged there. Before the cure's corrector: 54.45 implicit, 56.62 relaxed at 1e-4;
+    // in plane strain 54.8 against 55.2 (with the in-plane free strain 41.6 and 41.8).
     let scene = load_example(
         "underfill-cure.json",
         &[r#"output.fields=["stress","volume","material"]"#],
@@ -278,7 +282,7 @@ fn underfill_cure_runs_implicit_to_self_equilibrated_residual_stress() {
         balance[0].abs() < 1e-2 && balance[1].abs() < 1e-2,
         "{balance:?}"
     );
-    assert!((mean - 55.2e6).abs() < 0.02 * 55.2e6, "layer σxx {mean}");
+    assert!((mean - 52.46e6).abs() < 0.02 * 52.46e6, "layer σxx {mean}");
 }
 
 #[test]

@@ -149,13 +149,15 @@ fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
 }
 
 /// The whole chain: the cured underfill cracks during the first thermal cycle and the crack
-/// grows every cycle, and each stage's `damage` summary agrees with its store. In
-/// generalized plane strain (σzz counted in yield and damage) the first failure is at the
-/// corner where the bump meets the die, at 4,740 s (x = 42.5 µm, y = 147.6 µm), and the
-/// void the fill trapped has cracked neighbours by the cycle's end (measured: 298 / 497 /
-/// 645 failed particles after the cycles, with ε₀ in the Newton tangent; 295 / 494 / 641
-/// without, Newton's tolerance apart). With σzz left out (before), the first failure was
-/// by the void at 3,900 s, 37 / 62 / 85.
+/// grows every cycle, and each stage's `damage` summary agrees with its store. The section
+/// has two stress raisers, the void the fill trapped and the corner where the bump meets
+/// the die; the first failure is at one of them, and both have cracked by the end of the
+/// second cycle. Which one fails first is close: measured (generalized plane strain, the
+/// cure corrected after conduction) by the void at 5,580 s (x = 497 µm, y = 147 µm),
+/// 227 / 327 / 504 failed particles after the cycles, the bump corner's first 13 in the
+/// second (its largest damage 0.69 after the first); with the cure's predictor alone
+/// (0.02 more cure at the end of the oven) at the bump corner at 4,740 s, 298 / 497 / 645;
+/// with σzz left out (before), by the void at 3,900 s, 37 / 62 / 85.
 #[test]
 fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
     let dir = tempfile::tempdir().unwrap();
@@ -205,8 +207,9 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         })
         .expect("no particle failed in the first cycle");
     // The summary's onset is the step the first of them failed in: between the frame
-    // before and the frame that shows it, one of them, within two cells (20 µm) of the
-    // corner where the bump (x ≤ 40 µm) meets the die (y = 150 µm).
+    // before and the frame that shows it, one of them, by the void (within 30 µm of its
+    // centre along the gap and 10 µm across it) or within two cells (20 µm) of the corner
+    // where the bump (x ≤ 40 µm) meets the die (y = 150 µm).
     let figures = |name: &str| {
         stages.iter().find(|s| s["name"] == name).unwrap()["damage"]["underfill"].clone()
     };
@@ -231,10 +234,12 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         onset["position"][1].as_f64().unwrap(),
     ];
     let corner = [40e-6, 150e-6];
-    let distance = ((at[0] - corner[0]).powi(2) + (at[1] - corner[1]).powi(2)).sqrt();
+    let at_corner =
+        |p: [f64; 2]| ((p[0] - corner[0]).powi(2) + (p[1] - corner[1]).powi(2)).sqrt() < 20e-6;
+    let at_void = |p: [f64; 2]| (p[0] - void[0]).abs() < 30e-6 && (p[1] - void[1]).abs() < 10e-6;
     assert!(
-        distance < 20e-6,
-        "onset at {at:?}, the bump's corner at {corner:?}"
+        at_corner(at) || at_void(at),
+        "onset at {at:?}: neither the bump's corner at {corner:?} nor the void at {void:?}"
     );
     // The cracks grow from cycle to cycle.
     let length = |name: &str| figures(name)["crack_length"].as_f64().unwrap();
@@ -266,8 +271,22 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         })
         .count();
     assert!(by_void > 0, "no failed particle by the void at {void:?}");
+    // ... and by the end of the second the bump's corner has cracked too.
+    let second = ResultStore::open(&root).unwrap().stage("cycle-2").unwrap();
+    let end = second.frame_count().unwrap() - 1;
+    let (damage, x) = (
+        second.frame("damage", end).unwrap().1,
+        second.frame("x", end).unwrap().1,
+    );
+    let by_corner = (0..damage.len())
+        .filter(|&p| damage[p] >= 1.0 && at_corner([x[2 * p], x[2 * p + 1]]))
+        .count();
+    assert!(
+        by_corner > 0,
+        "no failed particle by the bump's corner after cycle 2"
+    );
     // The solder bump's inelastic work grows every stage; the cycles settle (a stable
-    // hysteresis loop: cycles 2 and 3 within 5%; measured 0.1292 and 0.1286 MJ/m³), and
+    // hysteresis loop: cycles 2 and 3 within 5%; measured 0.1897 and 0.1886 MJ/m³), and
     // the life each gives is the scene's fatigue law at that work.
     let law = &process_scene()["materials"]["solder"]["fatigue"];
     let (c, k) = (

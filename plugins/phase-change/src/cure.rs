@@ -27,6 +27,40 @@ pub struct CureKinetics {
     pub n: f64,
 }
 
+/// A particle's temperature over a step as the cure kinetics see it: linear from `start`
+/// to `end` (the conducted temperatures, which carry the heat of a predicted cure
+/// `released` spread evenly over the step), plus the heat of the cure that departs from
+/// that prediction, which stays in the particle: T(s) = start + (end − start)·s/dt +
+/// heating·(α(s) − α₀ − released·s/dt).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TemperaturePath {
+    /// Temperature at the step's start, K.
+    pub start: f64,
+    /// Conducted temperature at the step's end, K.
+    pub end: f64,
+    /// Temperature rise per unit of cure, heat of reaction over specific heat, K.
+    pub heating: f64,
+    /// The cure whose heat `end` carries (spread evenly over the step).
+    pub released: f64,
+}
+
+impl TemperaturePath {
+    /// A temperature held at `t` (the kinetics' predictor).
+    pub fn constant(t: f64) -> Self {
+        Self::adiabatic(t, 0.0)
+    }
+
+    /// A particle alone with its reaction heat from `start` (the adiabatic cell).
+    pub fn adiabatic(start: f64, heating: f64) -> Self {
+        Self {
+            start,
+            end: start,
+            heating,
+            released: 0.0,
+        }
+    }
+}
+
 impl CureKinetics {
     /// Rate constants (k1, k2) at temperature `t`.
     pub fn rate_constants(&self, t: f64) -> (f64, f64) {
@@ -147,28 +181,40 @@ impl CureParameters {
         issues
     }
 
-    /// Advances cure and temperature together over `dt` (the heat of reaction stays in
-    /// the particle; conduction spreads it next step) with RK4 sub-steps of at most 1 % of
-    /// cure each. Returns the new (cure, temperature).
-    pub fn advance(&self, alpha: f64, temperature: f64, specific_heat: f64, dt: f64) -> (f64, f64) {
-        let heating = self.heat_of_reaction / specific_heat;
+    /// Advances the cure over `dt` from `alpha` along `path`, with RK4 sub-steps of at
+    /// most 1 % of cure each at the hotter end. Returns the new cure.
+    pub fn advance_along(&self, alpha: f64, path: TemperaturePath, dt: f64) -> f64 {
         let rate = |a: f64, t: f64| self.kinetics.rate(t, a);
-        // (k1 + k2) bounds the rate at this temperature.
-        let (k1, k2) = self.kinetics.rate_constants(temperature);
+        let (k1, k2) = self.kinetics.rate_constants(path.start.max(path.end));
         let steps = ((dt * (k1 + k2) / 0.01).ceil() as usize).clamp(1, 10_000);
         let h = dt / steps as f64;
-        let (mut a, mut t) = (alpha, temperature);
-        for _ in 0..steps {
-            let k1 = rate(a, t);
-            let k2 = rate(a + 0.5 * h * k1, t + 0.5 * h * k1 * heating);
-            let k3 = rate(a + 0.5 * h * k2, t + 0.5 * h * k2 * heating);
-            let k4 = rate(a + h * k3, t + h * k3 * heating);
-            let da = (h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4))
+        let at = |s: f64, a: f64| {
+            path.start
+                + (path.end - path.start) * s / dt
+                + path.heating * (a - alpha - path.released * s / dt)
+        };
+        let mut a = alpha;
+        for i in 0..steps {
+            let s = i as f64 * h;
+            let r1 = rate(a, at(s, a));
+            let a2 = a + 0.5 * h * r1;
+            let r2 = rate(a2, at(s + 0.5 * h, a2));
+            let a3 = a + 0.5 * h * r2;
+            let r3 = rate(a3, at(s + 0.5 * h, a3));
+            let a4 = a + h * r3;
+            let r4 = rate(a4, at(s + h, a4));
+            a += (h / 6.0 * (r1 + 2.0 * r2 + 2.0 * r3 + r4))
                 .min(1.0 - a)
                 .max(0.0);
-            a += da;
-            t += da * heating;
         }
-        (a, t)
+        a
+    }
+
+    /// Advances cure and temperature together over `dt` as an adiabatic cell (the heat of
+    /// reaction stays in the particle). Returns the new (cure, temperature).
+    pub fn advance(&self, alpha: f64, temperature: f64, specific_heat: f64, dt: f64) -> (f64, f64) {
+        let heating = self.heat_of_reaction / specific_heat;
+        let a = self.advance_along(alpha, TemperaturePath::adiabatic(temperature, heating), dt);
+        (a, temperature + heating * (a - alpha))
     }
 }

@@ -25,7 +25,7 @@ mod parameters;
 mod phase_change;
 mod stefan;
 
-pub use cure::{CureKinetics, CureParameters, GlassTransition};
+pub use cure::{CureKinetics, CureParameters, GlassTransition, TemperaturePath};
 pub use cure_reference::kamal_sourour_isothermal;
 pub use melting::{Melting, PhaseProperties};
 pub use mixture::{PhaseMixture, PhaseMixtureParameters};
