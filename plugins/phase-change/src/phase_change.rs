@@ -1,9 +1,9 @@
 //! The phase-change operator: property mixing, latent heat, cure kinetics, free strains.
 
-use crate::cure::TemperaturePath;
+use crate::cure::{CureParameters, TemperaturePath};
 use crate::parameters::PhaseChangeParameters;
 use mpm_core::physics::{
-    FREE_STRAIN, HEAT_RELEASE, PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage,
+    FREE_STRAIN, GroupView, HEAT_RELEASE, PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage,
 };
 use std::sync::Mutex;
 
@@ -26,6 +26,17 @@ impl PhaseChange {
             params,
             step_start: Mutex::new(Vec::new()),
         }
+    }
+
+    /// The groups whose material cures, with its cure parameters.
+    fn curing<'a>(
+        &'a self,
+        groups: &'a [GroupView],
+    ) -> impl Iterator<Item = (&'a CureParameters, &'a GroupView)> + 'a {
+        groups.iter().filter_map(|g| {
+            let params = self.params.materials.get(&g.name)?.cure.as_ref()?;
+            Some((params, g))
+        })
     }
 
     fn initialise<const D: usize>(&self, ctx: PhysicsContext<'_, D>) {
@@ -81,15 +92,7 @@ impl PhaseChange {
         let mut start = self.step_start.lock().unwrap_or_else(|e| e.into_inner());
         start.clear();
         start.extend(cure.iter().zip(t.iter()).map(|(&a, &t)| [a, t]));
-        for g in pv.groups {
-            let Some(params) = self
-                .params
-                .materials
-                .get(&g.name)
-                .and_then(|m| m.cure.as_ref())
-            else {
-                continue;
-            };
+        for (params, g) in self.curing(pv.groups) {
             for p in g.range.clone() {
                 let a = params.advance_along(cure[p], TemperaturePath::constant(t[p]), dt);
                 let rho0 = pv.mass[p] / pv.volume0[p];
@@ -146,15 +149,7 @@ impl PhaseChange {
             start.clear();
             return;
         }
-        for g in ctx.particles.groups {
-            let Some(params) = self
-                .params
-                .materials
-                .get(&g.name)
-                .and_then(|m| m.cure.as_ref())
-            else {
-                continue;
-            };
+        for (params, g) in self.curing(ctx.particles.groups) {
             for p in g.range.clone() {
                 let [a0, t0] = start[p];
                 let heating = params.heat_of_reaction / c[p];
