@@ -289,8 +289,8 @@ fn underfill_cure_runs_implicit_to_self_equilibrated_residual_stress() {
 fn generalized_plane_strain_costs_newton_no_more_than_plane_strain() {
     // Each residual of the generalized plane strain solves ε₀ anew, so Newton's tangent
     // needs ε₀'s response (the rank-one term of `implicit/out_of_plane.rs`); without it
-    // Newton converges linearly. Measured on the cure example: 176 Newton iterations (at
-    // most 2 a step) against 167 (2) in plane strain; without the term 634 (8).
+    // Newton converges linearly. Measured on the cure example: 174 Newton iterations (at
+    // most 2 a step) against 168 (2) in plane strain; without the term 634 (8).
     let newton = |mode: &str| {
         let setting = format!("solver.free_strain_2d={mode}");
         let m = run(&load_example("underfill-cure.json", &[setting.as_str()]));
