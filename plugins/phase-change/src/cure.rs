@@ -64,10 +64,15 @@ impl TemperaturePath {
 impl CureKinetics {
     /// Rate constants (k1, k2) at temperature `t`.
     pub fn rate_constants(&self, t: f64) -> (f64, f64) {
-        (
-            self.a1 * (-self.e1 / (GAS_CONSTANT * t)).exp(),
-            self.a2 * (-self.e2 / (GAS_CONSTANT * t)).exp(),
-        )
+        let first = (-self.e1 / (GAS_CONSTANT * t)).exp();
+        // One exponential when both reactions share their activation energy (common in
+        // fits of underfill resins); the kinetics' sub-steps evaluate this many times.
+        let second = if self.e2 == self.e1 {
+            first
+        } else {
+            (-self.e2 / (GAS_CONSTANT * t)).exp()
+        };
+        (self.a1 * first, self.a2 * second)
     }
 
     /// dα/dt at temperature `t` and cure `alpha`.
