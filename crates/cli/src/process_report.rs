@@ -56,9 +56,12 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
     }
     if let Some(last) = m.stages.last() {
         for (material, f) in &last.fatigue {
+            let failure =
+                |n: Option<f64>| n.map_or(String::new(), |n| format!(", {n:.0} to failure"));
             if let Some(n) = f.cycles_to_crack {
                 lines.push(format!(
-                    "fatigue life: {material}, {n:.0} cycles to crack initiation at the work per cycle of stage {}",
+                    "fatigue life: {material}, {n:.0} cycles to crack initiation{} at the work per cycle of stage {}",
+                    failure(f.cycles_to_failure),
                     last.name
                 ));
             }
@@ -66,7 +69,8 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
                 && let Some(n) = layer.cycles_to_crack
             {
                 lines.push(format!(
-                    "fatigue life at the interface layer: {material} by {along}, {n:.0} cycles at the work per cycle of stage {}",
+                    "fatigue life at the interface layer: {material} by {along}, {n:.0} cycles{} at the work per cycle of stage {}",
+                    failure(layer.cycles_to_failure),
                     last.name
                 ));
             }
@@ -86,6 +90,9 @@ fn fatigue_line(material: &str, f: &FatigueFigures) -> String {
     if let Some(n) = f.cycles_to_crack {
         line += &format!("; {n:.0} cycles to crack initiation were every cycle like it");
     }
+    if let Some(n) = f.cycles_to_failure {
+        line += &format!(", {n:.0} to failure");
+    }
     for (along, layer) in &f.layers {
         line += &format!(
             "; its layer by {along} {:.4} MJ/m³",
@@ -93,6 +100,9 @@ fn fatigue_line(material: &str, f: &FatigueFigures) -> String {
         );
         if let Some(n) = layer.cycles_to_crack {
             line += &format!(", {n:.0} cycles");
+        }
+        if let Some(n) = layer.cycles_to_failure {
+            line += &format!(" ({n:.0} to failure)");
         }
     }
     line
@@ -237,12 +247,14 @@ mod tests {
                 work: 0.5e6,
                 work_in_stage: 0.2e6,
                 cycles_to_crack: Some(2631.6),
+                cycles_to_failure: Some(2828.0),
                 layers: [(
                     "silicon".to_string(),
                     LayerFigures {
                         work: 0.9e6,
                         work_in_stage: 0.4e6,
                         cycles_to_crack: Some(1315.8),
+                        cycles_to_failure: Some(1420.2),
                         volume: 1e-9,
                     },
                 )]
@@ -256,8 +268,8 @@ mod tests {
         assert!(
             lines.contains(
                 &"cycle-1: solder inelastic work 0.2000 MJ/m³ in the stage (0.5000 in all, volume \
-              average); 2632 cycles to crack initiation were every cycle like it; its layer by \
-              silicon 0.4000 MJ/m³, 1316 cycles"
+              average); 2632 cycles to crack initiation were every cycle like it, 2828 to failure; \
+              its layer by silicon 0.4000 MJ/m³, 1316 cycles (1420 to failure)"
                     .to_string()
             ),
             "{lines:?}"
@@ -265,10 +277,10 @@ mod tests {
         assert_eq!(
             lines[lines.len() - 2..],
             [
-                "fatigue life: solder, 2632 cycles to crack initiation at the work per cycle of \
-                 stage cycle-1",
-                "fatigue life at the interface layer: solder by silicon, 1316 cycles at the work \
-                 per cycle of stage cycle-1"
+                "fatigue life: solder, 2632 cycles to crack initiation, 2828 to failure at the \
+                 work per cycle of stage cycle-1",
+                "fatigue life at the interface layer: solder by silicon, 1316 cycles, 1420 to \
+                 failure at the work per cycle of stage cycle-1"
             ]
         );
     }

@@ -293,6 +293,12 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         law["coefficient"].as_f64().unwrap(),
         law["exponent"].as_f64().unwrap(),
     );
+    let growth = &law["growth"];
+    let (growth_k, growth_m, crack_length) = (
+        growth["coefficient"].as_f64().unwrap(),
+        growth["exponent"].as_f64().unwrap(),
+        growth["crack_length"].as_f64().unwrap(),
+    );
     let solder = |name: &str| {
         stages.iter().find(|s| s["name"] == name).unwrap()["fatigue"]["solder"].clone()
     };
@@ -311,6 +317,10 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         let cycles = f["cycles_to_crack"].as_f64().unwrap();
         let expected = c * in_stage.powf(k);
         assert!((cycles - expected).abs() <= 1e-12 * expected, "{name}: {f}");
+        // Darveaux's growth: then the crack crosses the joint at da/dN = K ΔW^m.
+        let failure = f["cycles_to_failure"].as_f64().unwrap();
+        let expected = expected + crack_length / (growth_k * in_stage.powf(growth_m));
+        assert!((failure - expected).abs() <= 1e-12 * expected, "{name}: {f}");
         before = work;
     }
     let per_cycle = ["cycle-2", "cycle-3"].map(|n| solder(n)["work_in_stage"].as_f64().unwrap());

@@ -26,6 +26,10 @@ pub struct FatigueFigures {
     /// (`None` without one, or without work in the stage).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cycles_to_crack: Option<f64>,
+    /// Cycles to failure (initiation, then the crack across the joint) at `work_in_stage`
+    /// per cycle, when the fatigue law grows the crack (`None` otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycles_to_failure: Option<f64>,
     /// The same figures averaged over the material's layer next to each material of
     /// `output.fatigue_layer.along` that it touches (empty without the setting).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -43,6 +47,9 @@ pub struct LayerFigures {
     /// Cycles to crack initiation at `work_in_stage` per cycle (`None` as above).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cycles_to_crack: Option<f64>,
+    /// Cycles to failure at `work_in_stage` per cycle (`None` as above).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycles_to_failure: Option<f64>,
     /// The layer's reference volume, m³ (m² in 2D).
     pub volume: f64,
 }
@@ -114,6 +121,7 @@ pub fn fatigue_figures<const D: usize>(
                     work,
                     work_in_stage: work - start,
                     cycles_to_crack: material.cycles_to_crack(work - start),
+                    cycles_to_failure: material.cycles_to_failure(work - start),
                     volume: v,
                 };
                 (along.to_string(), figures)
@@ -123,6 +131,7 @@ pub fn fatigue_figures<const D: usize>(
             work,
             work_in_stage,
             cycles_to_crack: material.cycles_to_crack(work_in_stage),
+            cycles_to_failure: material.cycles_to_failure(work_in_stage),
             layers,
         };
         out.insert(name.to_string(), figures);

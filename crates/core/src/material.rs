@@ -203,6 +203,13 @@ pub trait ConstitutiveLaw: Send + Sync + 'static {
         let _ = work_per_cycle;
         None
     }
+    /// Cycles to failure of a law whose fatigue law also grows the crack (Darveaux:
+    /// initiation, then a crack across the joint at a rate set by the same work per
+    /// cycle); `None`, the default, without a growth law or at no work.
+    fn cycles_to_failure(&self, work_per_cycle: f64) -> Option<f64> {
+        let _ = work_per_cycle;
+        None
+    }
     /// Computes the Cauchy stress of every particle in the batch and reports the batch's
     /// strain energy and largest wave speed.
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats;
@@ -288,6 +295,8 @@ pub trait Material: Send + Sync {
     fn reports_plastic_work(&self) -> bool;
     /// See [`ConstitutiveLaw::cycles_to_crack`].
     fn cycles_to_crack(&self, work_per_cycle: f64) -> Option<f64>;
+    /// See [`ConstitutiveLaw::cycles_to_failure`].
+    fn cycles_to_failure(&self, work_per_cycle: f64) -> Option<f64>;
     /// 2D (plane strain) batch update.
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats;
     /// 3D batch update.
@@ -335,6 +344,9 @@ impl<T: ConstitutiveLaw> Material for T {
     }
     fn cycles_to_crack(&self, work_per_cycle: f64) -> Option<f64> {
         ConstitutiveLaw::cycles_to_crack(self, work_per_cycle)
+    }
+    fn cycles_to_failure(&self, work_per_cycle: f64) -> Option<f64> {
+        ConstitutiveLaw::cycles_to_failure(self, work_per_cycle)
     }
     fn update_stress_2d(&self, batch: StressBatch<'_, 2>) -> BatchStats {
         self.update_stress::<2>(batch)

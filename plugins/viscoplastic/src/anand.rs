@@ -202,6 +202,10 @@ impl ConstitutiveLaw for Anand {
         self.params.fatigue?.cycles(work_per_cycle)
     }
 
+    fn cycles_to_failure(&self, work_per_cycle: f64) -> Option<f64> {
+        self.params.fatigue?.cycles_to_failure(work_per_cycle)
+    }
+
     fn update_stress<const D: usize>(&self, batch: StressBatch<'_, D>) -> BatchStats {
         let (mu, bulk) = (self.shear, self.bulk);
         let [strain_f, resistance_f, rate_f, work_f, inverse_f, ..] = batch.state.fields;

@@ -9,7 +9,7 @@ mod fatigue;
 mod tangent;
 
 pub use anand::Anand;
-pub use fatigue::FatigueLaw;
+pub use fatigue::{CrackGrowth, FatigueLaw};
 
 use mpm_core::material::Material;
 use mpm_core::plugin::{MaterialFactory, Plugin, TypedMaterialFactory, check_elastic_constants};

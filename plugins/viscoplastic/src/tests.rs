@@ -284,6 +284,11 @@ fn bad_constants_are_refused_at_their_paths() {
     p.fatigue = Some(FatigueLaw {
         coefficient: 5e8,
         exponent: 1.0,
+        growth: Some(CrackGrowth {
+            coefficient: 2.6e-12,
+            exponent: -0.98,
+            crack_length: 0.0,
+        }),
     });
     let paths: Vec<String> = p
         .check("materials.solder")
@@ -294,6 +299,8 @@ fn bad_constants_are_refused_at_their_paths() {
         "materials.solder.rate_sensitivity",
         "materials.solder.initial_resistance",
         "materials.solder.fatigue.exponent",
+        "materials.solder.fatigue.growth.exponent",
+        "materials.solder.fatigue.growth.crack_length",
     ] {
         assert!(
             paths.iter().any(|p| p == expected),
@@ -308,11 +315,36 @@ fn the_fatigue_law_gives_fewer_cycles_for_more_work() {
     let law = FatigueLaw {
         coefficient: 1e6 / 0.0019,
         exponent: -1.0,
+        growth: None,
     };
     let n = law.cycles(0.1e6).unwrap();
     assert!((n - 1.0 / 0.00019).abs() < 1e-9 * n, "{n}");
     assert!(law.cycles(0.2e6).unwrap() < n);
     assert_eq!(law.cycles(0.0), None);
+    assert_eq!(law.cycles_to_failure(0.1e6), None, "no growth law");
+}
+
+#[test]
+fn darveaux_growth_adds_the_cycles_to_cross_the_joint() {
+    // da/dN = K ΔW^m: at ΔW = 0.2 MJ/m³, K = 2.6e-12, m = 0.98, 4.07e-7 m a cycle, so
+    // 80 µm takes 196.4 cycles after initiation; twice the work, fewer of both.
+    let law = FatigueLaw {
+        coefficient: 1e6 / 0.0019,
+        exponent: -1.0,
+        growth: Some(CrackGrowth {
+            coefficient: 2.6e-12,
+            exponent: 0.98,
+            crack_length: 80e-6,
+        }),
+    };
+    let work: f64 = 0.2e6;
+    let rate = 2.6e-12 * work.powf(0.98);
+    let expected = law.cycles(work).unwrap() + 80e-6 / rate;
+    let n = law.cycles_to_failure(work).unwrap();
+    assert!((n - expected).abs() < 1e-12 * n, "{n} against {expected}");
+    assert!((80e-6 / rate - 196.4).abs() < 0.1, "{}", 80e-6 / rate);
+    assert!(law.cycles_to_failure(2.0 * work).unwrap() < n);
+    assert_eq!(law.cycles_to_failure(0.0), None);
 }
 
 /// The analytic tangent after driving a point through `history` (steps of `dt`), at `f`
