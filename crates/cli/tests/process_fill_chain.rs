@@ -320,7 +320,10 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         // Darveaux's growth: then the crack crosses the joint at da/dN = K ΔW^m.
         let failure = f["cycles_to_failure"].as_f64().unwrap();
         let expected = expected + crack_length / (growth_k * in_stage.powf(growth_m));
-        assert!((failure - expected).abs() <= 1e-12 * expected, "{name}: {f}");
+        assert!(
+            (failure - expected).abs() <= 1e-12 * expected,
+            "{name}: {f}"
+        );
         before = work;
     }
     let per_cycle = ["cycle-2", "cycle-3"].map(|n| solder(n)["work_in_stage"].as_f64().unwrap());
