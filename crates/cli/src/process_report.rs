@@ -29,7 +29,11 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
         for (material, d) in stage.damage.iter().filter(|(_, d)| d.peak > 0.0) {
             lines.push(format!("{name}: {}", damage_line(material, d)));
         }
-        for (material, f) in stage.fatigue.iter().filter(|(_, f)| f.work_in_stage > 0.0) {
+        for (material, f) in stage
+            .fatigue
+            .iter()
+            .filter(|(_, f)| f.whole.work_in_stage > 0.0)
+        {
             lines.push(format!("{name}: {}", fatigue_line(material, f)));
         }
     }
@@ -58,19 +62,19 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
         for (material, f) in &last.fatigue {
             let failure =
                 |n: Option<f64>| n.map_or(String::new(), |n| format!(", {n:.0} to failure"));
-            if let Some(n) = f.cycles_to_crack {
+            if let Some(n) = f.whole.cycles_to_crack {
                 lines.push(format!(
                     "fatigue life: {material}, {n:.0} cycles to crack initiation{} at the work per cycle of stage {}",
-                    failure(f.cycles_to_failure),
+                    failure(f.whole.cycles_to_failure),
                     last.name
                 ));
             }
             if let Some((along, layer)) = f.critical_layer()
-                && let Some(n) = layer.cycles_to_crack
+                && let Some(n) = layer.figures.cycles_to_crack
             {
                 lines.push(format!(
                     "fatigue life at the interface layer: {material} by {along}, {n:.0} cycles{} at the work per cycle of stage {}",
-                    failure(layer.cycles_to_failure),
+                    failure(layer.figures.cycles_to_failure),
                     last.name
                 ));
             }
@@ -84,24 +88,24 @@ pub(crate) fn process_report(m: &Metrics) -> Vec<String> {
 fn fatigue_line(material: &str, f: &FatigueFigures) -> String {
     let mut line = format!(
         "{material} inelastic work {:.4} MJ/m³ in the stage ({:.4} in all, volume average)",
-        f.work_in_stage / 1e6,
-        f.work / 1e6
+        f.whole.work_in_stage / 1e6,
+        f.whole.work / 1e6
     );
-    if let Some(n) = f.cycles_to_crack {
+    if let Some(n) = f.whole.cycles_to_crack {
         line += &format!("; {n:.0} cycles to crack initiation were every cycle like it");
     }
-    if let Some(n) = f.cycles_to_failure {
+    if let Some(n) = f.whole.cycles_to_failure {
         line += &format!(", {n:.0} to failure");
     }
     for (along, layer) in &f.layers {
         line += &format!(
             "; its layer by {along} {:.4} MJ/m³",
-            layer.work_in_stage / 1e6
+            layer.figures.work_in_stage / 1e6
         );
-        if let Some(n) = layer.cycles_to_crack {
+        if let Some(n) = layer.figures.cycles_to_crack {
             line += &format!(", {n:.0} cycles");
         }
-        if let Some(n) = layer.cycles_to_failure {
+        if let Some(n) = layer.figures.cycles_to_failure {
             line += &format!(" ({n:.0} to failure)");
         }
     }
@@ -183,7 +187,7 @@ fn position(x: &[f64; 3]) -> String {
 mod tests {
     use super::*;
     use mpm_core::damage_measures::FailureOnset;
-    use mpm_core::fatigue_measures::LayerFigures;
+    use mpm_core::fatigue_measures::{LayerFigures, WorkFigures};
 
     fn stage(name: &str, onset: Option<f64>) -> StageSummary {
         let mut s = StageSummary {
@@ -244,17 +248,21 @@ mod tests {
         cycle.fatigue.insert(
             "solder".into(),
             FatigueFigures {
-                work: 0.5e6,
-                work_in_stage: 0.2e6,
-                cycles_to_crack: Some(2631.6),
-                cycles_to_failure: Some(2828.0),
+                whole: WorkFigures {
+                    work: 0.5e6,
+                    work_in_stage: 0.2e6,
+                    cycles_to_crack: Some(2631.6),
+                    cycles_to_failure: Some(2828.0),
+                },
                 layers: [(
                     "silicon".to_string(),
                     LayerFigures {
-                        work: 0.9e6,
-                        work_in_stage: 0.4e6,
-                        cycles_to_crack: Some(1315.8),
-                        cycles_to_failure: Some(1420.2),
+                        figures: WorkFigures {
+                            work: 0.9e6,
+                            work_in_stage: 0.4e6,
+                            cycles_to_crack: Some(1315.8),
+                            cycles_to_failure: Some(1420.2),
+                        },
                         volume: 1e-9,
                     },
                 )]

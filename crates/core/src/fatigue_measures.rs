@@ -14,11 +14,12 @@ use crate::scene::FatigueLayer;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// One material's inelastic work over a stage.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FatigueFigures {
+/// Inelastic work over a stage, averaged over a volume (a material's, or a layer of it),
+/// and the lives its fatigue law gives at the stage's work per cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WorkFigures {
     /// Inelastic work density accumulated since the run began, averaged over the
-    /// material's reference volume, J/m³.
+    /// reference volume, J/m³.
     pub work: f64,
     /// Its increase over this stage, J/m³: the work per cycle when the stage is a cycle.
     pub work_in_stage: f64,
@@ -30,6 +31,27 @@ pub struct FatigueFigures {
     /// per cycle, when the fatigue law grows the crack (`None` otherwise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cycles_to_failure: Option<f64>,
+}
+
+impl WorkFigures {
+    /// The figures of an average `work` that was `start` when the stage began.
+    fn of(work: f64, start: f64, material: &dyn crate::material::Material) -> Self {
+        let in_stage = work - start;
+        Self {
+            work,
+            work_in_stage: in_stage,
+            cycles_to_crack: material.cycles_to_crack(in_stage),
+            cycles_to_failure: material.cycles_to_failure(in_stage),
+        }
+    }
+}
+
+/// One material's inelastic work over a stage.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FatigueFigures {
+    /// Averaged over the material's reference volume.
+    #[serde(flatten)]
+    pub whole: WorkFigures,
     /// The same figures averaged over the material's layer next to each material of
     /// `output.fatigue_layer.along` that it touches (empty without the setting).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -39,17 +61,9 @@ pub struct FatigueFigures {
 /// The inelastic work of a joint's layer next to one material, over a stage.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LayerFigures {
-    /// Work density accumulated since the run began, averaged over the layer's reference
-    /// volume, J/m³.
-    pub work: f64,
-    /// Its increase over this stage, J/m³.
-    pub work_in_stage: f64,
-    /// Cycles to crack initiation at `work_in_stage` per cycle (`None` as above).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cycles_to_crack: Option<f64>,
-    /// Cycles to failure at `work_in_stage` per cycle (`None` as above).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cycles_to_failure: Option<f64>,
+    /// Averaged over the layer's reference volume.
+    #[serde(flatten)]
+    pub figures: WorkFigures,
     /// The layer's reference volume, m³ (m² in 2D).
     pub volume: f64,
 }
@@ -59,7 +73,11 @@ impl FatigueFigures {
     pub fn critical_layer(&self) -> Option<(&str, &LayerFigures)> {
         self.layers
             .iter()
-            .max_by(|a, b| a.1.work_in_stage.total_cmp(&b.1.work_in_stage))
+            .max_by(|a, b| {
+                a.1.figures
+                    .work_in_stage
+                    .total_cmp(&b.1.figures.work_in_stage)
+            })
             .map(|(name, f)| (name.as_str(), f))
     }
 }
@@ -107,31 +125,23 @@ pub fn fatigue_figures<const D: usize>(
     let mean = |weighted: f64, volume: f64| if volume > 0.0 { weighted / volume } else { 0.0 };
     for (name, ((weighted, volume, layers), material)) in sums {
         let previous = before.get(name);
-        let work = mean(weighted, volume);
-        let work_in_stage = work - previous.map_or(0.0, |f| f.work);
         let layers = layers
             .into_iter()
             .filter(|(_, (_, v))| *v > 0.0)
             .map(|(along, (w, v))| {
-                let work = mean(w, v);
                 let start = previous
                     .and_then(|f| f.layers.get(along))
-                    .map_or(0.0, |l| l.work);
+                    .map_or(0.0, |l| l.figures.work);
                 let figures = LayerFigures {
-                    work,
-                    work_in_stage: work - start,
-                    cycles_to_crack: material.cycles_to_crack(work - start),
-                    cycles_to_failure: material.cycles_to_failure(work - start),
+                    figures: WorkFigures::of(mean(w, v), start, material),
                     volume: v,
                 };
                 (along.to_string(), figures)
             })
             .collect();
+        let start = previous.map_or(0.0, |f| f.whole.work);
         let figures = FatigueFigures {
-            work,
-            work_in_stage,
-            cycles_to_crack: material.cycles_to_crack(work_in_stage),
-            cycles_to_failure: material.cycles_to_failure(work_in_stage),
+            whole: WorkFigures::of(mean(weighted, volume), start, material),
             layers,
         };
         out.insert(name.to_string(), figures);
