@@ -5,7 +5,7 @@
 //! last stage (cycle) gives. Every figure is also in the run's metrics (`stages[i]`), which the job
 //! service stores with the job; `mpm submit --wait` prints the same report from them.
 
-use mpm_core::damage_measures::DamageFigures;
+use mpm_core::damage_measures::{DamageFigures, SITE_DAMAGE};
 use mpm_core::fatigue_measures::FatigueFigures;
 use mpm_core::output::{Metrics, StageSummary};
 
@@ -143,6 +143,22 @@ pub(crate) fn damage_line(material: &str, d: &DamageFigures) -> String {
             position(&o.position)
         );
     }
+    if !d.sites.is_empty() {
+        let sites: Vec<String> = d
+            .sites
+            .iter()
+            .map(|s| {
+                format!(
+                    "{:.3} about {}, {} of {} failed",
+                    s.peak,
+                    position(&s.centre),
+                    s.failed_particles,
+                    s.particles
+                )
+            })
+            .collect();
+        line += &format!("; sites at damage ≥ {SITE_DAMAGE}: {}", sites.join("; "));
+    }
     line
 }
 
@@ -186,7 +202,7 @@ fn position(x: &[f64; 3]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mpm_core::damage_measures::FailureOnset;
+    use mpm_core::damage_measures::{DamageSite, FailureOnset};
     use mpm_core::fatigue_measures::{LayerFigures, WorkFigures};
 
     fn stage(name: &str, onset: Option<f64>) -> StageSummary {
@@ -207,6 +223,24 @@ mod tests {
                     position: [1e-4, 2e-4, 0.0],
                     particle: 7,
                 }),
+                sites: onset
+                    .map(|_| {
+                        vec![
+                            DamageSite {
+                                peak: 1.0,
+                                centre: [1e-4, 2e-4, 0.0],
+                                particles: 6,
+                                failed_particles: 4,
+                            },
+                            DamageSite {
+                                peak: 0.69,
+                                centre: [4e-5, 1.5e-4, 0.0],
+                                particles: 3,
+                                failed_particles: 0,
+                            },
+                        ]
+                    })
+                    .unwrap_or_default(),
                 ..DamageFigures::default()
             },
         );
@@ -222,6 +256,15 @@ mod tests {
         let lines = process_report(&m);
         assert!(lines.contains(&"cure: peak von Mises, MPa: silicon 250.0".to_string()));
         assert!(lines.contains(&"cure: underfill damage 0.500, 0 failed".to_string()));
+        assert!(
+            lines.contains(
+                &"cycle-1: underfill damage 1.000, 4 failed in 1 crack(s), longest 4.0000e-5 m; \
+              first failure t = 3.900000e3 s at (1.0000e-4, 2.0000e-4) m; sites at damage ≥ \
+              0.5: 1.000 about (1.0000e-4, 2.0000e-4) m, 4 of 6 failed; 0.690 about \
+              (4.0000e-5, 1.5000e-4) m, 0 of 3 failed"
+                    .to_string()
+            )
+        );
         assert_eq!(
             lines.last().unwrap(),
             "crack onset: stage cycle-1 (2 of 2), underfill, t = 3.900000e3 s at \

@@ -285,6 +285,25 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         by_corner > 0,
         "no failed particle by the bump's corner after cycle 2"
     );
+    // The first cycle's damaged sites (damage ≥ 0.5, most damaged first) show the
+    // rival of the site that failed first: one lies by the bump's side (its centre within
+    // 30 µm of x = 40 µm), measured 0.70 at the bump's substrate corner and 0.69 at its
+    // die corner, among 8 sites of which 3 have failed.
+    let sites = figures("cycle-1")["sites"].as_array().unwrap().clone();
+    let peak = |s: &serde_json::Value| s["peak"].as_f64().unwrap();
+    assert!(
+        !sites.is_empty() && sites.len() <= 6,
+        "{} sites",
+        sites.len()
+    );
+    assert!(sites.windows(2).all(|w| peak(&w[0]) >= peak(&w[1])));
+    assert_eq!(peak(&sites[0]), 1.0);
+    assert!(
+        sites
+            .iter()
+            .any(|s| peak(s) >= 0.5 && (s["centre"][0].as_f64().unwrap() - 40e-6).abs() < 30e-6),
+        "no damaged site by the bump after cycle 1: {sites:?}"
+    );
     // The solder bump's inelastic work grows every stage; the cycles settle (a stable
     // hysteresis loop: cycles 2 and 3 within 5%; measured 0.1897 and 0.1886 MJ/m³), and
     // the life each gives is the scene's fatigue law at that work.

@@ -1,8 +1,10 @@
 //! Damage figures a run (and each stage of a staged run) reports at its end, per material
 //! whose law keeps a `damage` state field (`johnson_cook`, `phase_mixture` with damage):
 //! the largest damage, the particles that failed (damage 1) with their current volume, the
-//! cracks they make (failed neighbours joined) and the longest crack's length, and when and
-//! where the first particle failed (`solver/failure_watch.rs` watches for that each step).
+//! cracks they make (failed neighbours joined) and the longest crack's length, the most
+//! damaged sites (damaged neighbours joined, so a crack's rival that has not failed yet
+//! shows), and when and where the first particle failed (`solver/failure_watch.rs` watches
+//! for that each step).
 
 use crate::math::{Vector, determinant};
 use crate::particles::{MaterialGroup, Particles};
@@ -10,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
 
 /// One material's damage at a run's (stage's) end.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct DamageFigures {
     /// Largest damage of its particles, in [0, 1].
     pub peak: f64,
@@ -31,6 +33,24 @@ pub struct DamageFigures {
     /// particle failed before the stage began does not count.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub onset: Option<FailureOnset>,
+    /// The most damaged sites, most damaged first (at most [`SITES_REPORTED`]): groups of
+    /// particles at damage [`SITE_DAMAGE`] or more, joined as cracks are. Two stress
+    /// raisers that race to crack first both show here, whichever won.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sites: Vec<DamageSite>,
+}
+
+/// A damaged site: neighbouring particles at damage [`SITE_DAMAGE`] or more.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct DamageSite {
+    /// Its largest damage.
+    pub peak: f64,
+    /// The mean position of its particles, m (z = 0 in 2D).
+    pub centre: [f64; 3],
+    /// Its particles.
+    pub particles: usize,
+    /// Those of them that have failed.
+    pub failed_particles: usize,
 }
 
 /// When and where the first particle of a material failed.
@@ -47,6 +67,12 @@ pub struct FailureOnset {
 /// Failed particles closer than this many particle spacings belong to one crack.
 pub const CRACK_LINK: f64 = 1.5;
 
+/// The damage from which a particle belongs to a damaged site.
+pub const SITE_DAMAGE: f64 = 0.5;
+
+/// How many damaged sites a material reports.
+pub const SITES_REPORTED: usize = 6;
+
 /// The index of `group`'s one-component `damage` state field, if its law keeps one.
 pub fn damage_field(group: &MaterialGroup) -> Option<usize> {
     group
@@ -60,42 +86,125 @@ pub fn damage_field(group: &MaterialGroup) -> Option<usize> {
 /// without one are left out. `onset` is left `None` (the run loop's watch fills it).
 pub fn damage_figures<const D: usize>(particles: &Particles<D>) -> BTreeMap<String, DamageFigures> {
     let mut out = BTreeMap::new();
-    let mut failed: BTreeMap<String, (Vec<Vector<D>>, f64)> = BTreeMap::new();
+    let mut failed: BTreeMap<String, Marked<D>> = BTreeMap::new();
+    let mut damaged: BTreeMap<String, Marked<D>> = BTreeMap::new();
     for group in &particles.groups {
         let Some(field) = damage_field(group) else {
             continue;
         };
         let entry: &mut DamageFigures = out.entry(group.name.clone()).or_default();
-        let (points, spacings) = failed.entry(group.name.clone()).or_default();
+        let failed = failed.entry(group.name.clone()).or_default();
+        let damaged = damaged.entry(group.name.clone()).or_default();
         for (k, &d) in group.state[field].iter().enumerate() {
             entry.peak = entry.peak.max(d);
+            let p = group.range.start + k;
+            if d >= SITE_DAMAGE {
+                damaged.push(particles, p, d);
+            }
             if d >= 1.0 {
-                let p = group.range.start + k;
                 entry.failed_particles += 1;
                 entry.failed_volume +=
                     determinant(&particles.deformation_gradient[p]) * particles.volume0[p];
-                points.push(particles.position[p]);
-                *spacings += particles.volume0[p].abs().powf(1.0 / D as f64);
+                failed.push(particles, p, d);
             }
         }
     }
-    for (name, (points, spacings)) in failed {
-        if let (Some(entry), false) = (out.get_mut(&name), points.is_empty()) {
-            let (cracks, length) = cracks(&points, spacings / points.len() as f64);
+    for (name, failed) in failed {
+        if let (Some(entry), false) = (out.get_mut(&name), failed.points.is_empty()) {
+            let (cracks, length) = cracks(&failed.points, failed.spacing());
             entry.cracks = cracks;
             entry.crack_length = length;
+        }
+    }
+    for (name, damaged) in damaged {
+        if let Some(entry) = out.get_mut(&name) {
+            entry.sites = sites(&damaged);
         }
     }
     out
 }
 
+/// Particles picked out of a material: where they are, their damage and the sum of their
+/// spacings (the cube or square root of their initial volume).
+#[derive(Default)]
+struct Marked<const D: usize> {
+    points: Vec<Vector<D>>,
+    damage: Vec<f64>,
+    spacings: f64,
+}
+
+impl<const D: usize> Marked<D> {
+    fn push(&mut self, particles: &Particles<D>, p: usize, damage: f64) {
+        self.points.push(particles.position[p]);
+        self.damage.push(damage);
+        self.spacings += particles.volume0[p].abs().powf(1.0 / D as f64);
+    }
+
+    /// Their mean spacing.
+    fn spacing(&self) -> f64 {
+        self.spacings / self.points.len().max(1) as f64
+    }
+}
+
+/// The [`SITES_REPORTED`] most damaged sites among `damaged`: most damaged first, then
+/// the one with more failed particles, then more particles.
+fn sites<const D: usize>(damaged: &Marked<D>) -> Vec<DamageSite> {
+    let mut sites: Vec<DamageSite> = linked_groups(&damaged.points, damaged.spacing())
+        .into_iter()
+        .map(|members| {
+            let mut centre = [0.0; 3];
+            for &i in &members {
+                for (a, v) in damaged.points[i].iter().enumerate() {
+                    centre[a] += v / members.len() as f64;
+                }
+            }
+            DamageSite {
+                peak: members
+                    .iter()
+                    .map(|&i| damaged.damage[i])
+                    .fold(0.0, f64::max),
+                centre,
+                particles: members.len(),
+                failed_particles: members
+                    .iter()
+                    .filter(|&&i| damaged.damage[i] >= 1.0)
+                    .count(),
+            }
+        })
+        .collect();
+    sites.sort_by(|a, b| {
+        b.peak
+            .total_cmp(&a.peak)
+            .then(b.failed_particles.cmp(&a.failed_particles))
+            .then(b.particles.cmp(&a.particles))
+    });
+    sites.truncate(SITES_REPORTED);
+    sites
+}
+
 /// The cracks among the failed particles at `points`, `spacing` apart on average: how
-/// many, and the longest one's length. Neighbours are found through a hash of cells one
-/// link long, so the cost is linear in the failed particles.
+/// many, and the longest one's length.
 fn cracks<const D: usize>(points: &[Vector<D>], spacing: f64) -> (usize, f64) {
+    let groups = linked_groups(points, spacing);
+    let longest = groups
+        .iter()
+        .map(|members| {
+            let points: Vec<Vector<D>> = members.iter().map(|&i| points[i]).collect();
+            principal_extent(&points) + spacing
+        })
+        .fold(0.0, f64::max);
+    (groups.len(), longest)
+}
+
+/// `points` joined into groups through neighbours closer than [`CRACK_LINK`] × `spacing`,
+/// each group its members' indices in increasing order, the groups in the order of their
+/// first member. Neighbours are found through a hash of cells one link long, so the cost
+/// is linear in the points. A spacing that is not positive and finite leaves every point
+/// on its own.
+fn linked_groups<const D: usize>(points: &[Vector<D>], spacing: f64) -> Vec<Vec<usize>> {
     let link = CRACK_LINK * spacing;
-    if points.is_empty() || !(link > 0.0 && link.is_finite()) {
-        return (points.len(), 0.0);
+    if !(link > 0.0 && link.is_finite()) {
+        return (0..points.len()).map(|i| vec![i]).collect();
     }
     let cell_of = |x: &Vector<D>| -> [i64; 3] {
         let mut c = [0i64; 3];
@@ -135,16 +244,12 @@ fn cracks<const D: usize>(points: &[Vector<D>], spacing: f64) -> (usize, f64) {
             }
         }
     }
-    let mut members: BTreeMap<usize, Vec<Vector<D>>> = BTreeMap::new();
-    for (i, x) in points.iter().enumerate() {
+    let mut members: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for i in 0..points.len() {
         let r = root(&mut parent, i);
-        members.entry(r).or_default().push(*x);
+        members.entry(r).or_default().push(i);
     }
-    let longest = members
-        .values()
-        .map(|points| principal_extent(points) + spacing)
-        .fold(0.0, f64::max);
-    (members.len(), longest)
+    members.into_values().collect()
 }
 
 /// The extent of `points` along their principal direction (the covariance's largest
@@ -211,5 +316,40 @@ mod tests {
         // Two particles 1.6 spacings apart are two cracks of one spacing each.
         assert_eq!(cracks(&points(&[(0.0, 0.0), (1.6, 0.0)]), 1.0), (2, 1.0));
         assert_eq!(cracks::<2>(&[], 1.0), (0, 0.0));
+    }
+
+    #[test]
+    fn damaged_sites_are_ranked_by_their_peak_and_keep_a_rival_that_has_not_failed() {
+        // A crack of three failed particles with a damaged neighbour; a rival of two at
+        // 0.7 and 0.6 far away; a lone particle at 0.55; then lone ones at 0.5, one more
+        // than the sites reported, so that the last is left out.
+        let mut xy = vec![
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (2.0, 0.0),
+            (3.0, 0.0),
+            (50.0, 50.0),
+            (51.0, 50.0),
+            (-40.0, 0.0),
+        ];
+        let mut damage = vec![1.0, 1.0, 0.8, 1.0, 0.6, 0.7, 0.55];
+        for k in 0..SITES_REPORTED - 2 {
+            xy.push((100.0 + 10.0 * k as f64, 80.0));
+            damage.push(0.5);
+        }
+        let marked = Marked::<2> {
+            spacings: xy.len() as f64,
+            points: points(&xy),
+            damage,
+        };
+        let sites = sites(&marked);
+        assert_eq!(sites.len(), SITES_REPORTED);
+        assert_eq!((sites[0].peak, sites[0].particles), (1.0, 4));
+        assert_eq!(sites[0].failed_particles, 3);
+        assert_eq!(sites[0].centre, [1.5, 0.0, 0.0]);
+        assert_eq!((sites[1].peak, sites[1].particles), (0.7, 2));
+        assert_eq!(sites[1].centre, [50.5, 50.0, 0.0]);
+        assert_eq!((sites[2].peak, sites[2].failed_particles), (0.55, 0));
+        assert_eq!(sites[SITES_REPORTED - 1].peak, 0.5);
     }
 }
