@@ -58,13 +58,19 @@ fn boyle_left_level(ambient: f64) -> f64 {
 fn a_sealed_pocket_holds_the_level_difference_boyle_gives() {
     // examples/enclosed-air-u-tube.json: ambient 200 Pa, so the sealed air gives way by
     // about a tenth of its height. Reference: left level 3.759 mm, right 6.241 mm, level
-    // difference 2.482 mm (pocket gauge pressure 24.3 Pa). Measured at 0.6 s: left 3.737 mm,
-    // right 6.151 mm, difference 2.414 mm (−2.7%); bound 5% on the difference, 0.1 mm on
-    // each level. Without enclosed_air the levels meet (measured 4.91 and 4.72 mm: that run
-    // has no volume source, so its particles cluster and the levels sink; bound 0.5 mm).
-    // With implicit viscosity (the incremental projection keeps the pocket's pressure in
-    // its nodes from step to step): left 3.717 mm, right 6.158 mm, difference 2.441 mm
-    // (−1.6%); while it kept 0 there, the left level read 4.42 mm, still sloshing.
+    // difference 2.482 mm (pocket gauge pressure 24.3 Pa). Measured at 0.6 s: left 3.750 mm,
+    // right 6.138 mm, difference 2.388 mm (−3.8%); with implicit viscosity (the incremental
+    // projection keeps the pocket's pressure in its nodes from step to step) 3.750, 6.118,
+    // 2.368 mm (−4.6%). Bounds: 5% on the difference, 0.1 mm on the left level, and Boyle
+    // at the measured left level against the hydrostatic head of the measured levels, 5%
+    // (measured 24.0 against 23.4 Pa). The right level is bound at 0.15 mm: the levels
+    // count particles above the baffle's edge, and the particles below it pack by about
+    // 0.11 mm of level (the two levels add up to 9.888 mm, not 10), which the reference
+    // leaves out. Before closed gaps were closed (they were free surface at gauge 0), the
+    // same sum and left 3.737, right 6.151 mm (implicit 3.717, 6.158 mm), under the 0.1 mm
+    // that bound both levels then. Without enclosed_air the levels meet (measured 4.91 and
+    // 4.72 mm: that run has no volume source, so its particles cluster and the levels sink;
+    // bound 0.5 mm).
     let implicit = r#"solver.mechanics={"incompressible":{"viscosity":"implicit","enclosed_air":{"ambient_pressure":200}}}"#;
     for overrides in [&[][..], &[implicit][..]] {
         let (m, frames) = run_fields(&load_example("enclosed-air-u-tube.json", overrides), &["x"]);
@@ -88,8 +94,14 @@ fn a_sealed_pocket_holds_the_level_difference_boyle_gives() {
             "left {left} against {expected_left}"
         );
         assert!(
-            (right - expected_right).abs() < 1e-4,
+            (right - expected_right).abs() < 1.5e-4,
             "right {right} against {expected_right}"
+        );
+        let boyle = 200.0 * (LID - LEFT0) / (LID - left) - 200.0;
+        let head = 1000.0 * 9.81 * difference;
+        assert!(
+            (boyle / head - 1.0).abs() < 0.05,
+            "the pocket's gauge by Boyle {boyle} Pa against the head {head} Pa"
         );
         assert_eq!(m.physics["incompressible.air_pockets"], 1.0);
     }
@@ -111,6 +123,60 @@ fn a_sealed_pocket_holds_the_level_difference_boyle_gives() {
     );
 }
 
+#[test]
+fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
+    // examples/liquid-inflow-tank.json closed at 10 mm and walled all round: 4 mm of water
+    // (8e-5 m²) and 1.2e-4 m² of air at 101325 Pa; the inlet adds 4e-5 m² by 0.2 s, so the
+    // air ends in 8e-5 m² at 151,988 Pa absolute (Boyle): 50.7 kPa gauge. Before closed
+    // gaps were closed (they were free surface at gauge 0, sinks inside the pressurised
+    // liquid) this inverted a particle at 45 ms, and was refused.
+    // The air's pressure is Boyle's at the volume the solver leaves it, and the liquid
+    // takes less room than its particles' volume, as it does in the open tank (level −2.8%
+    // at cfl 0.5, −3.5% at 0.1; liquid_inflow.rs): the pressure at the water's surface
+    // implies a liquid volume of V_box − V_air·101325/p (measured −2.3% at cfl 0.5, 45.6
+    // kPa; −4.2% at cfl 0.1, 41.6 kPa); bound 5%. Boyle amplifies it: the gauge is 10% and
+    // 18% under 50.7 kPa.
+    for cfl in ["0.5", "0.1"] {
+        let scene = load_example(
+            "liquid-inflow-tank.json",
+            &[
+                "domain.max=[0.02,0.01]",
+                r#"domain.walls=[{"sides":["x-","x+","y-","y+"],"condition":"slip"}]"#,
+                "bodies[1].shape.inflow.end=0.2",
+                &format!("solver.cfl={cfl}"),
+                r#"solver.mechanics={"incompressible":{"enclosed_air":{}}}"#,
+                r#"output.fields=["x","injected","pressure"]"#,
+            ],
+        );
+        let (m, frames) = run_fields(&scene, &["x", "injected", "pressure"]);
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+        assert_eq!(m.physics["incompressible.air_pockets"], 1.0);
+        let last = frames.times.len() - 1;
+        let (x, injected, pressure) = (
+            &frames.values[0][last],
+            &frames.values[1][last],
+            &frames.values[2][last],
+        );
+        // The water's surface: the highest entered particle; its pressure, the mean over
+        // the entered particles within half a millimetre of it.
+        let top = (0..injected.len())
+            .filter(|&p| injected[p] > 0.5)
+            .map(|p| x[2 * p + 1])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let near: Vec<f64> = (0..injected.len())
+            .filter(|&p| injected[p] > 0.5 && x[2 * p + 1] > top - 0.5e-3)
+            .map(|p| pressure[p])
+            .collect();
+        let gauge = near.iter().sum::<f64>() / near.len() as f64;
+        let liquid = 0.02 * 0.01 - 1.2e-4 * 101325.0 / (101325.0 + gauge);
+        eprintln!("cfl {cfl}: air at {gauge} Pa, so the liquid takes {liquid} m² of 1.2e-4");
+        assert!(
+            (liquid / 1.2e-4 - 1.0).abs() < 0.05,
+            "cfl {cfl}: air at {gauge} Pa leaves the liquid {liquid} m² of 1.2e-4"
+        );
+    }
+}
+
 /// The column `column` of void `id` in the run's `underfill_voids` table.
 fn void(m: &mpm_core::output::Metrics, id: usize, column: &str) -> f64 {
     let table = &m.tables["underfill_voids"];
@@ -122,9 +188,10 @@ fn void(m: &mpm_core::output::Metrics, id: usize, column: &str) -> f64 {
 fn the_pits_air_stays_in_3d() {
     // examples/liquid-void-pit.json made 3D (4 mm deep between slip walls, as in
     // liquid_voids.rs): the slab closes the pit's 96 mm³ of air at 30 ms. With the air kept
-    // as a gas at 101325 Pa the pocket is still there at 80 ms (measured: 80 mm³ of wholly
-    // empty cells, the rest of its gas in cells particles spread into; largest gauge
-    // pressure 739 Pa); taken for free surface, the water fills it by 48 ms.
+    // as a gas at 101325 Pa the pocket is still there at 80 ms (measured: 77 mm³ of wholly
+    // empty cells in the voids still open, the rest of its gas in cells particles spread
+    // into; largest gauge pressure 756 Pa); taken for free surface, the water fills it by
+    // 48 ms.
     let pit = |mechanics: &str| {
         let overrides: Vec<&str> = PIT_3D.into_iter().chain([mechanics]).collect();
         run(&load_example("liquid-void-pit.json", &overrides))
@@ -138,12 +205,15 @@ fn the_pits_air_stays_in_3d() {
     );
     assert!((void(&kept, 0, "closed_volume") - 96e-9).abs() < 1e-15);
     assert!(void(&kept, 0, "filled_time").is_nan(), "the pit's air left");
-    assert!(
-        void(&kept, 0, "volume") > 60e-9,
-        "{}",
-        void(&kept, 0, "volume")
-    );
-    assert_eq!(kept.physics["incompressible.air_pockets"], 1.0);
+    // The pocket may split (measured: in two of 38 and 38.5 mm³ at 79.8 ms, since closed
+    // gaps are closed rather than left at gauge 0): what stays is the open voids' volume.
+    let rows = &kept.tables["underfill_voids"].rows;
+    let open: f64 = (0..rows.len())
+        .filter(|&id| void(&kept, id, "filled_time").is_nan())
+        .map(|id| void(&kept, id, "volume"))
+        .sum();
+    assert!(open > 60e-9, "{open} m³ of air left at 80 ms");
+    assert!(kept.physics["incompressible.air_pockets"] >= 1.0);
     let free = pit(r#"solver.mechanics={"incompressible":{}}"#);
     assert!((void(&free, 0, "closed_volume") - 96e-9).abs() < 1e-15);
     assert!(
@@ -166,19 +236,6 @@ fn enclosed_air_is_refused_where_it_cannot_work() {
         let issues = invalid_example("enclosed-air-u-tube.json", &[&set]);
         assert!(issues.iter().any(|i| i.starts_with(&path)), "{issues:?}");
     }
-    // An inlet into a box walled all round (measured: a particle inverted at 45 ms).
-    let sealed = [
-        "domain.max=[0.02,0.01]",
-        r#"domain.walls=[{"sides":["x-","x+","y-","y+"],"condition":"slip"}]"#,
-        r#"solver.mechanics={"incompressible":{"enclosed_air":{}}}"#,
-    ];
-    let issues = invalid_example("liquid-inflow-tank.json", &sealed);
-    assert!(
-        issues
-            .iter()
-            .any(|i| i.starts_with(air) && i.contains("compress")),
-        "{issues:?}"
-    );
     let issues = invalid_example(
         "enclosed-air-u-tube.json",
         &[&format!("{air}.pressure=1e5")],

@@ -217,7 +217,7 @@ pub struct EnclosedAirSettings {
     #[serde(default = "default_ambient_pressure")]
     pub ambient_pressure: f64,
     /// Smallest pocket, in cells, whose gas resists; a smaller one (a gap between moving
-    /// particles) stays free surface.
+    /// particles) is closed by the liquid around it, as is an enclosed region without gas.
     #[serde(default = "default_min_pocket_cells")]
     pub min_cells: f64,
 }

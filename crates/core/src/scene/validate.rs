@@ -237,19 +237,6 @@ impl Validator {
                      domain.walls, or remove this)",
                 );
             }
-            let inflow = s
-                .bodies
-                .iter()
-                .any(|b| matches!(b.shape, super::Shape::Inflow(_)));
-            if settings.enclosed_air.is_some() && inflow && walled.len() >= 2 * self.dim {
-                self.err(
-                    "solver.mechanics.incompressible.enclosed_air",
-                    "an inlet filling a box walled on every side would have to compress the \
-                     enclosed air, which this solver does not yet do right (measured: a \
-                     particle inverted at 45 ms, or at cfl 0.1 the air at 291 kPa where Boyle \
-                     gives 51 kPa); open a face or remove enclosed_air",
-                );
-            }
         }
         if s.materials.is_empty() {
             self.err("materials", "at least one material is needed");

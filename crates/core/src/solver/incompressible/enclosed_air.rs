@@ -9,8 +9,12 @@
 //! (shared out over the regions its cells went to, in proportion to cells, so pockets that
 //! split or merge keep their gas, and gas that reaches open air is gone) plus the ambient
 //! pressure times the cells that were open air (a pocket closing). A region of liquid cells
-//! torn open, with no gas, stays free surface, as does a pocket of fewer than `min_cells`
-//! cells (it keeps its gas for when it grows).
+//! torn open, with no gas, and a pocket of fewer than `min_cells` cells (it keeps its gas
+//! for when it grows) are gaps: they have a pressure unknown like a pocket's, but no gas
+//! that resists (C = 0) and a target volume of 0, so the liquid closes them at the volume
+//! source's pace and their pressure is the liquid's around them. As free surface at gauge
+//! 0 they were sinks inside liquid a compressed pocket pressurises (an inlet filling a
+//! sealed box inverted a particle within 45 ms).
 //!
 //! The nodes around a pocket share one pressure unknown P_k (plus the surface-tension
 //! Laplace pressure each node has on its own), the pocket's row being the sum of its nodes'
@@ -21,7 +25,10 @@
 //! the inflow's volume source, so that particles drifting into a pocket are pushed out
 //! again and the gas's volume follows the cells over many steps, not in one jolt):
 //! Σ_i (A p)_i + C P_k = Σ_i b_i + C P_last − (share/dt²)(V_measured − V), C = V/(p_abs·dt²).
-//! C > 0 keeps the system symmetric positive definite even in a box with every face walled.
+//! C > 0 keeps the system symmetric positive definite even in a box with every face walled
+//! (a gap's C = 0 leaves it positive semi-definite where a liquid region touches neither
+//! free surface nor gas: in a box walled all round and full, gaps keep their volume, so
+//! that the system stays consistent).
 //! The measured volume is the pocket's cells plus what the liquid cells around it lack of a
 //! full cell, so a surface row half full counts half.
 //!
@@ -68,6 +75,8 @@ struct Unknown {
     diagonal: f64,
     /// Measured volume: the region's cells plus the neighbouring liquid cells' shortfall.
     measured: f64,
+    /// A gap, not a gas pocket: it holds no gas, or fewer cells than `min_cells`.
+    gap: bool,
 }
 
 /// The enclosed air's state and workspace (sized on the first step, reused).
@@ -89,6 +98,9 @@ pub(super) struct EnclosedAir {
     stack: Vec<usize>,
     /// The pockets' history is unknown (first step, after a checkpoint).
     fresh: bool,
+    /// This step has open air or a gas pocket, so the liquid's volume can go somewhere
+    /// and gaps may close; in a full box walled all round they keep their volume.
+    anchored: bool,
 }
 
 impl EnclosedAir {
@@ -105,6 +117,7 @@ impl EnclosedAir {
             unknowns: Vec::new(),
             stack: Vec::new(),
             fresh: true,
+            anchored: false,
         }
     }
 
@@ -116,6 +129,12 @@ impl EnclosedAir {
     /// Number of pocket unknowns this step (appended after the nodes in the solve).
     pub(super) fn unknowns(&self) -> usize {
         self.unknowns.len()
+    }
+
+    /// This step's gas pockets and gaps (closed regions solved as closing).
+    pub(super) fn counts(&self) -> (usize, usize) {
+        let gaps = self.unknowns.iter().filter(|u| u.gap).count();
+        (self.unknowns.len() - gaps, gaps)
     }
 
     /// Finds this step's regions and pockets and ties the pockets' nodes. `cell_volume`
@@ -203,24 +222,26 @@ impl EnclosedAir {
         self.next_pockets.clear();
         self.unknowns.clear();
         for (r, region) in self.regions.iter_mut().enumerate() {
-            if region.open || region.gas <= 0.0 {
+            if region.open {
                 continue;
             }
-            region.carried = self.next_pockets.len() as u32;
-            self.next_pockets.push(Pocket {
-                gas: region.gas,
-                volume: region.volume,
-                reached: 0,
-            });
-            if region.cells as f64 >= self.settings.min_cells {
-                region.unknown = self.unknowns.len() as u32;
-                self.unknowns.push(Unknown {
-                    region: r as u32,
-                    measured: region.cells as f64 * cell_size,
-                    ..Unknown::default()
+            if region.gas > 0.0 {
+                region.carried = self.next_pockets.len() as u32;
+                self.next_pockets.push(Pocket {
+                    gas: region.gas,
+                    volume: region.volume,
+                    reached: 0,
                 });
             }
+            region.unknown = self.unknowns.len() as u32;
+            self.unknowns.push(Unknown {
+                region: r as u32,
+                measured: region.cells as f64 * cell_size,
+                gap: region.gas <= 0.0 || (region.cells as f64) < self.settings.min_cells,
+                ..Unknown::default()
+            });
         }
+        self.anchored = self.regions.iter().any(|r| r.open) || self.unknowns.iter().any(|u| !u.gap);
         std::mem::swap(&mut self.pockets, &mut self.next_pockets);
         for c in 0..cells {
             let r = self.region[c];
@@ -320,8 +341,12 @@ impl EnclosedAir {
         let ambient = self.settings.ambient_pressure;
         for u in self.unknowns.iter_mut() {
             let region = &self.regions[u.region as usize];
-            let absolute = region.gas / region.volume;
-            u.compliance = region.volume / (absolute * dt * dt);
+            u.compliance = if u.gap {
+                0.0
+            } else {
+                let absolute = region.gas / region.volume;
+                region.volume / (absolute * dt * dt)
+            };
             u.diagonal = u.compliance;
         }
         // The diagonal of the pocket's row: Σ over liquid cells of the element stiffness
@@ -345,9 +370,23 @@ impl EnclosedAir {
             rhs[n + k as usize] += rhs[i];
         }
         for (k, u) in self.unknowns.iter().enumerate() {
+            if u.diagonal <= 0.0 {
+                // A gap no liquid cell touches: nothing to solve for.
+                rhs[n + k] = 0.0;
+                inverse_diagonal[n + k] = 0.0;
+                pressure[n + k] = 0.0;
+                continue;
+            }
             let region = &self.regions[u.region as usize];
-            let last = region.gas / region.volume - ambient;
-            rhs[n + k] += u.compliance * last - share / (dt * dt) * (u.measured - region.volume);
+            let (last, target) = if u.gap {
+                // A gap closes (its target volume is 0) at the volume source's pace; its
+                // pressure is whatever the liquid around it needs for that. With nowhere
+                // for the volume to go the system would have no solution: it stays.
+                (0.0, if self.anchored { 0.0 } else { u.measured })
+            } else {
+                (region.gas / region.volume - ambient, region.volume)
+            };
+            rhs[n + k] += u.compliance * last - share / (dt * dt) * (u.measured - target);
             inverse_diagonal[n + k] = 1.0 / u.diagonal;
             pressure[n + k] = last;
         }
@@ -392,7 +431,7 @@ impl EnclosedAir {
             pressure[i] += pressure[n + k as usize];
         }
         let mut largest: f64 = 0.0;
-        for (k, u) in self.unknowns.iter().enumerate() {
+        for (k, u) in self.unknowns.iter().enumerate().filter(|(_, u)| !u.gap) {
             let region = &self.regions[u.region as usize];
             let gauge = pressure[n + k];
             // The solve never takes a pocket below vacuum; guard against it all the same.
@@ -494,6 +533,59 @@ mod tests {
         assert_eq!(largest, 500.0);
         for p in &air.pockets {
             assert!((p.volume - 2.5 * 2.0 / 3.0).abs() < 1e-12, "{}", p.volume);
+        }
+    }
+
+    #[test]
+    fn a_hole_torn_in_the_liquid_is_a_gap_that_closes_where_the_volume_can_go() {
+        // With a notch open to the grid's edge a hole that opens inside the liquid (it was
+        // liquid, so it holds no gas) is a gap: no compliance, and its row asks the share of
+        // its volume back. In a box that is full and sealed there is nowhere for it to go.
+        let corners = |grid: &Grid<2>| {
+            [
+                0,
+                grid.stride[1],
+                grid.stride[0],
+                grid.stride[0] + grid.stride[1],
+            ]
+        };
+        let mut stiffness = [[0.0; 8]; 8];
+        for (a, row) in stiffness.iter_mut().enumerate().take(4) {
+            row[a] = 1.0;
+        }
+        for (notch, asked) in [(&[(0, 5), (1, 5)][..], -0.5), (&[][..], 0.0)] {
+            let (grid, volume, solid, node) = cells_with(notch);
+            let corners = corners(&grid);
+            let mut air = air();
+            air.find_pockets(&grid, &volume, &solid, &node, &corners);
+            assert_eq!(air.counts(), (0, 0));
+            let mut torn = notch.to_vec();
+            torn.push((4, 4));
+            let (_, volume, _, _) = cells_with(&torn);
+            air.find_pockets(&grid, &volume, &solid, &node, &corners);
+            assert_eq!(air.counts(), (0, 1), "one gap, no gas pocket");
+            let n = grid.len();
+            let (mut rhs, mut inverse, mut pressure) =
+                (vec![0.0; n + 1], vec![0.0; n + 1], vec![0.0; n + 1]);
+            air.fill_rows(
+                n,
+                1.0,
+                0.5,
+                |c| (volume[c] > 0.0).then_some(1.0),
+                &node,
+                &corners,
+                &stiffness,
+                &mut rhs,
+                &mut inverse,
+                &mut pressure,
+            );
+            assert_eq!(air.unknowns[0].compliance, 0.0);
+            assert!(inverse[n] > 0.0);
+            // The hole's one cell, with its full neighbours: share × 1 cell.
+            assert_eq!(rhs[n], asked, "notch {notch:?}");
+            // A gap's pressure is no pocket's: the largest gauge stays 0.
+            pressure[n] = 50.0;
+            assert_eq!(air.finish(&mut pressure, n), 0.0);
         }
     }
 }

@@ -63,12 +63,15 @@ use crate::math::{Matrix, Vector};
 use crate::physics::PhysicsFault;
 use crate::scene::{IncompressibleSettings, Transfer, ViscousIntegration};
 use surface_tension::SurfaceTension;
-use volume_source::VOLUME_CORRECTION;
+use volume_source::{SOURCE_CFL, VOLUME_CORRECTION};
 
 /// Physics figure: the most enclosed-air pockets that resisted in one step.
 pub const AIR_POCKETS: &str = "incompressible.air_pockets";
 /// Physics figure: the largest gauge pressure of an enclosed-air pocket over the run, Pa.
 pub const AIR_PRESSURE: &str = "incompressible.air_pressure";
+/// Physics figure: the most closed gaps (empty regions inside the liquid without gas, or
+/// smaller than `min_cells`) in one step; each closes instead of drawing the liquid in.
+pub const CLOSED_GAPS: &str = "incompressible.closed_gaps";
 
 /// Corners of a cell (2^D, at most 8).
 const MAX_CORNERS: usize = 8;
@@ -436,7 +439,7 @@ impl<const D: usize> Incompressible<D> {
             }
         }
         // Scenes with inlets or enclosed air move misplaced particle volume back (volume_source.rs).
-        let rate = (dt / (sim.settings.cfl * convective_step(sim))).min(1.0);
+        let rate = (dt / (sim.settings.cfl.max(SOURCE_CFL) * convective_step(sim))).min(1.0);
         let source = self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
         self.source_solved = source && self.viscosity.is_some();
         if source {
@@ -502,7 +505,9 @@ impl<const D: usize> Incompressible<D> {
             self.settings.max_iterations,
         );
         if let Some(mut air) = self.air.take() {
-            sim.report.record_max(AIR_POCKETS, air.unknowns() as f64);
+            let (pockets, gaps) = air.counts();
+            sim.report.record_max(AIR_POCKETS, pockets as f64);
+            sim.report.record_max(CLOSED_GAPS, gaps as f64);
             let largest = air.finish(&mut self.pressure, n);
             sim.report.record_max(AIR_PRESSURE, largest);
             for v in self.solve_vectors() {
