@@ -77,6 +77,9 @@ struct Unknown {
     measured: f64,
     /// A gap, not a gas pocket: it holds no gas, or fewer cells than `min_cells`.
     gap: bool,
+    /// The volume share's part of its right-hand side (the volume source's, for the
+    /// source's own solve with implicit viscosity).
+    source: f64,
 }
 
 /// The enclosed air's state and workspace (sized on the first step, reused).
@@ -369,7 +372,8 @@ impl EnclosedAir {
         for &(i, k) in &self.tied_nodes {
             rhs[n + k as usize] += rhs[i];
         }
-        for (k, u) in self.unknowns.iter().enumerate() {
+        for (k, u) in self.unknowns.iter_mut().enumerate() {
+            u.source = 0.0;
             if u.diagonal <= 0.0 {
                 // A gap no liquid cell touches: nothing to solve for.
                 rhs[n + k] = 0.0;
@@ -386,9 +390,34 @@ impl EnclosedAir {
             } else {
                 (region.gas / region.volume - ambient, region.volume)
             };
-            rhs[n + k] += u.compliance * last - share / (dt * dt) * (u.measured - target);
+            u.source = -share / (dt * dt) * (u.measured - target);
+            rhs[n + k] += u.compliance * last + u.source;
             inverse_diagonal[n + k] = 1.0 / u.diagonal;
             pressure[n + k] = last;
+        }
+    }
+
+    /// The pocket rows of the volume source's own right-hand side (`rhs`, its nodes' rows
+    /// filled): the sum of the tied nodes' and the volume share, with none of the gas's
+    /// last pressure, so that the source's pressure is its part of the whole solve's.
+    pub(super) fn source_rows(&self, n: usize, rhs: &mut [f64]) {
+        rhs[n..n + self.unknowns.len()].fill(0.0);
+        for &(i, k) in &self.tied_nodes {
+            rhs[n + k as usize] += rhs[i];
+        }
+        for (k, u) in self.unknowns.iter().enumerate() {
+            rhs[n + k] = if u.diagonal > 0.0 {
+                rhs[n + k] + u.source
+            } else {
+                0.0
+            };
+        }
+    }
+
+    /// Adds each pocket's (gap's) value after the `n` nodes to its tied nodes.
+    pub(super) fn add_tied(&self, values: &mut [f64], n: usize) {
+        for &(i, k) in &self.tied_nodes {
+            values[i] += values[n + k as usize];
         }
     }
 
@@ -427,9 +456,7 @@ impl EnclosedAir {
     /// volume, and returns the largest pocket gauge pressure (0 without pockets).
     pub(super) fn finish(&mut self, pressure: &mut [f64], n: usize) -> f64 {
         let ambient = self.settings.ambient_pressure;
-        for &(i, k) in &self.tied_nodes {
-            pressure[i] += pressure[n + k as usize];
-        }
+        self.add_tied(pressure, n);
         let mut largest: f64 = 0.0;
         for (k, u) in self.unknowns.iter().enumerate().filter(|(_, u)| !u.gap) {
             let region = &self.regions[u.region as usize];
