@@ -60,7 +60,7 @@ fn a_sealed_pocket_holds_the_level_difference_boyle_gives() {
     // about a tenth of its height. Reference: left level 3.759 mm, right 6.241 mm, level
     // difference 2.482 mm (pocket gauge pressure 24.3 Pa). Measured at 0.6 s: left 3.750 mm,
     // right 6.138 mm, difference 2.388 mm (−3.8%); with implicit viscosity (the incremental
-    // projection keeps the pocket's pressure in its nodes from step to step) 3.750, 6.118,
+    // projection keeps the pocket's pressure in its nodes from step to step) 3.757, 6.125,
     // 2.368 mm (−4.6%). Bounds: 5% on the difference, 0.1 mm on the left level, and Boyle
     // at the measured left level against the hydrostatic head of the measured levels, 5%
     // (measured 24.0 against 23.4 Pa). The right level is bound at 0.15 mm: the levels
