@@ -368,10 +368,7 @@ impl EnclosedAir {
                 }
             }
         }
-        rhs[n..n + self.unknowns.len()].fill(0.0);
-        for &(i, k) in &self.tied_nodes {
-            rhs[n + k as usize] += rhs[i];
-        }
+        self.gather_tied(rhs, n);
         for (k, u) in self.unknowns.iter_mut().enumerate() {
             u.source = 0.0;
             if u.diagonal <= 0.0 {
@@ -401,16 +398,21 @@ impl EnclosedAir {
     /// filled): the sum of the tied nodes' and the volume share, with none of the gas's
     /// last pressure, so that the source's pressure is its part of the whole solve's.
     pub(super) fn source_rows(&self, n: usize, rhs: &mut [f64]) {
-        rhs[n..n + self.unknowns.len()].fill(0.0);
-        for &(i, k) in &self.tied_nodes {
-            rhs[n + k as usize] += rhs[i];
-        }
+        self.gather_tied(rhs, n);
         for (k, u) in self.unknowns.iter().enumerate() {
             rhs[n + k] = if u.diagonal > 0.0 {
                 rhs[n + k] + u.source
             } else {
                 0.0
             };
+        }
+    }
+
+    /// Sets each pocket's (gap's) entry after the `n` nodes to the sum of its tied nodes'.
+    fn gather_tied(&self, values: &mut [f64], n: usize) {
+        values[n..n + self.unknowns.len()].fill(0.0);
+        for &(i, k) in &self.tied_nodes {
+            values[n + k as usize] += values[i];
         }
     }
 
