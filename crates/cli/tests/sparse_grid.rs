@@ -1,7 +1,7 @@
 //! The sparse grid (`solver.grid: "sparse"`, the default) against the dense one: the same
 //! particle states bit for bit (P2G adds the same terms in the same order and the grid update
 //! treats every node alike, so only the energy sums' grouping differs), with grid memory
-//! following the particles instead of the domain.
+//! following the particles instead of the domain; the heat conduction's node arrays too.
 
 mod common;
 
@@ -154,4 +154,63 @@ fn a_few_particles_in_a_large_box_take_a_few_blocks() {
         (drop - expected).abs() < 1e-9 * expected,
         "dropped {drop} m in {n} steps, free fall {expected} m"
     );
+}
+
+/// Heat conduction between a hot and a cold cube, 2 cells each, in a 1 m box at 1/520 m
+/// cells: the conduction's node arrays cover the nodes the particles' stencils reach, not
+/// the box's 521³ (11 arrays of them would be 12 GB, which the limits used to refuse). The
+/// cubes exchange heat as in a box just larger than they are, and keep their heat.
+#[test]
+fn heat_conduction_in_a_large_box_holds_arrays_for_its_own_nodes() {
+    let h = 1.0 / 520.0;
+    let scene = |min: f64, max: f64| {
+        let material = |t: f64| {
+            serde_json::json!({"conductivity": 50.0, "specific_heat": 500.0,
+            "initial_temperature": t})
+        };
+        let steel = serde_json::json!({"type": "linear_elastic", "density": 7800.0,
+            "youngs_modulus": 2e11, "poisson_ratio": 0.3});
+        let cube = |name: &str, x0: f64| {
+            serde_json::json!({"name": name, "material": name,
+            "particles_per_cell": 2, "shape": {"box": {"min": [x0, 0.5, 0.5],
+                "max": [x0 + 2.0 * h, 0.5 + 2.0 * h, 0.5 + 2.0 * h]}}})
+        };
+        serde_json::json!({
+            "name": "hot-and-cold", "dimension": 3,
+            "domain": {"min": [min, min, min], "max": [max, max, max], "cell_size": h},
+            "solver": {"end_time": 1.0, "dt": 0.1, "mechanics": "off", "kernel": "bspline2"},
+            "materials": {"hot": steel, "cold": steel},
+            "physics": {"thermal": {"integrator": "implicit",
+                "materials": {"hot": material(400.0), "cold": material(300.0)}}},
+            "bodies": [cube("hot", 0.5), cube("cold", 0.5 + 2.0 * h)],
+            "output": {"frames": 2, "fields": ["temperature"]}
+        })
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, min: f64, max: f64| {
+        let path = write_scene(dir.path(), name, &scene(min, max));
+        let (m, frames) = run_fields(&load(&path, &[]), &["temperature"]);
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+        assert_eq!(m.particles, 128);
+        (m, frames.values[0].last().unwrap().clone())
+    };
+    let (large, t_large) = run("large.json", 0.0, 1.0);
+    let (_, t_small) = run("small.json", 0.5 - 8.0 * h, 0.5 + 12.0 * h);
+    // The node arrays: 11 of 8 bytes on each reached node (a few hundred), plus the rows'
+    // numbering, about 0.19 bytes per grid node of the box (26 MB).
+    println!("grid bytes: {}", large.grid_bytes);
+    assert!(large.grid_bytes < 40 << 20, "{} bytes", large.grid_bytes);
+    // The same exchange as in the small box, to round-off of the nodes' positions.
+    let worst = t_large
+        .iter()
+        .zip(&t_small)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "temperatures differ by {worst} K");
+    // Equal masses and heat capacities: the mean temperature is the heat, kept; the hot
+    // cube (the first 64 particles) cooled and the cold one warmed.
+    let mean = |t: &[f64]| t.iter().sum::<f64>() / t.len() as f64;
+    assert!((mean(&t_large) - 350.0).abs() < 1e-9, "{}", mean(&t_large));
+    let (hot, cold) = (mean(&t_large[..64]), mean(&t_large[64..]));
+    assert!(hot < 395.0 && cold > 305.0, "hot {hot} K, cold {cold} K");
 }

@@ -250,7 +250,8 @@ pub struct Metrics {
     /// Particle storage actually allocated, bytes per particle.
     pub bytes_per_particle: f64,
     /// Grid storage, bytes: the grid's arrays (a sparse grid's: the most blocks in use at
-    /// once), contact fields', F-bar's and the physics operators' node arrays.
+    /// once), contact fields', F-bar's and the physics operators' node arrays (at the end:
+    /// one row per node the particles' stencils reach, and the rows' numbering).
     pub grid_bytes: usize,
     /// Wall seconds spent in each stage of the step (`sort`, `bin`, `p2g`, `grid_update`,
     /// `g2p`, `volume_average`, `physics`, `stress`, `state_average`, and `solve`: the rest of

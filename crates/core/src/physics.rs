@@ -123,18 +123,33 @@ impl ParticleFields {
 }
 
 /// Every particle's stencil at the current positions: `stencil` nodes per particle, with
-/// their grid index, weight and weight gradient (physical units, 1/m). Physics operators use
-/// it for their own particle↔grid transfers without knowing the kernel.
+/// their row, weight and weight gradient (physical units, 1/m). Physics operators use it for
+/// their own particle↔grid transfers without knowing the kernel.
+///
+/// The physics operators' interpolation has compact rows: a row is a node some stencil
+/// reaches, numbered in grid order, so an operator's node arrays hold
+/// [`Interpolation::row_count`] values instead of one per grid node (a body in a large box
+/// pays for its own nodes only) and sums over rows run in the grid's order.
 #[derive(Default)]
 pub struct Interpolation<const D: usize> {
     /// Nodes per particle.
     pub stencil: usize,
-    /// Node index of each stencil entry (particle-major).
+    /// Row of each stencil entry (particle-major): the grid node, or with compact rows the
+    /// node's index in `rows`.
     pub node: Vec<u32>,
     /// Weight of each stencil entry.
     pub weight: Vec<f64>,
     /// Gradient of the weight with respect to the particle position, 1/m.
     pub gradient: Vec<Vector<D>>,
+    /// Whether `node` holds compact rows.
+    pub compact: bool,
+    /// With compact rows, the grid node of each row (ascending); empty otherwise.
+    pub rows: Vec<u32>,
+    /// The numbering's scratch: one bit per grid node, one bit per word of those that
+    /// holds any, and the rows before each word.
+    pub(crate) marks: Vec<std::sync::atomic::AtomicU64>,
+    pub(crate) summary: Vec<std::sync::atomic::AtomicU64>,
+    pub(crate) rank: Vec<u32>,
 }
 
 impl<const D: usize> Interpolation<D> {
@@ -144,11 +159,39 @@ impl<const D: usize> Interpolation<D> {
         p * self.stencil..(p + 1) * self.stencil
     }
 
+    /// Rows an operator's node arrays need: the reached nodes with compact rows, else
+    /// `grid_nodes` (the grid's length).
+    pub fn row_count(&self, grid_nodes: usize) -> usize {
+        if self.compact {
+            self.rows.len()
+        } else {
+            grid_nodes
+        }
+    }
+
+    /// The grid node of `row`.
+    #[inline]
+    pub fn grid_node(&self, row: usize) -> usize {
+        if self.compact {
+            self.rows[row] as usize
+        } else {
+            row
+        }
+    }
+
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         self.node.capacity() * 4
             + self.weight.capacity() * 8
             + self.gradient.capacity() * std::mem::size_of::<Vector<D>>()
+            + self.rows.capacity() * 4
+            + self.numbering_bytes()
+    }
+
+    /// Bytes of the row numbering's box-wide bitmaps and counts: about 0.19 bytes per grid
+    /// node (a bit, and a 4-byte count per 64 nodes).
+    pub fn numbering_bytes(&self) -> usize {
+        (self.marks.capacity() + self.summary.capacity()) * 8 + self.rank.capacity() * 4
     }
 }
 
@@ -270,9 +313,10 @@ pub struct PhysicsContext<'a, const D: usize> {
     pub boundaries: &'a crate::boundary::Boundaries<D>,
     /// Shared scalar particle fields.
     pub fields: &'a mut ParticleFields,
-    /// This operator's grid scratch arrays, one per [`PhysicsLaw::grid_arrays`], each one
-    /// number per node; they keep their values between steps, and an operator that needs
-    /// more per node (one value per contact field) may grow them once.
+    /// This operator's grid scratch arrays, one per [`PhysicsLaw::grid_arrays`], each
+    /// [`PhysicsLaw::values_per_row`] numbers per row of `interpolation` (row-major by
+    /// value: row + k × rows), sized by the core whenever it builds the stencils; they keep
+    /// their values between steps while the rows stay.
     pub scratch: &'a mut [Vec<f64>],
     /// Faults and figures.
     pub report: &'a mut PhysicsReport,
@@ -300,9 +344,14 @@ pub trait PhysicsLaw: Send + Sync + 'static {
     fn requires(&self) -> Vec<&'static str> {
         Vec::new()
     }
-    /// Grid scratch arrays it needs (each one number per node).
+    /// Grid scratch arrays it needs (each [`PhysicsLaw::values_per_row`] numbers per row).
     fn grid_arrays(&self) -> usize {
         0
+    }
+    /// Numbers per row in each scratch array (one per thermal group with contact
+    /// conductance, say).
+    fn values_per_row(&self) -> usize {
+        1
     }
     /// Whether the particle stencils must be built for it.
     fn needs_interpolation(&self) -> bool {
@@ -330,6 +379,8 @@ pub trait Physics: Send + Sync {
     fn requires(&self) -> Vec<&'static str>;
     /// See [`PhysicsLaw::grid_arrays`].
     fn grid_arrays(&self) -> usize;
+    /// See [`PhysicsLaw::values_per_row`].
+    fn values_per_row(&self) -> usize;
     /// See [`PhysicsLaw::needs_interpolation`].
     fn needs_interpolation(&self) -> bool;
     /// See [`PhysicsLaw::hidden_state`].
@@ -353,6 +404,9 @@ impl<T: PhysicsLaw> Physics for T {
     }
     fn grid_arrays(&self) -> usize {
         PhysicsLaw::grid_arrays(self)
+    }
+    fn values_per_row(&self) -> usize {
+        PhysicsLaw::values_per_row(self)
     }
     fn needs_interpolation(&self) -> bool {
         PhysicsLaw::needs_interpolation(self)

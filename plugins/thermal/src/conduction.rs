@@ -144,14 +144,17 @@ impl Thermal {
             &[]
         };
         let heat_release: &[f64] = heat_release.map_or(&[][..], |h| &*h);
-        let nodes = grid.len();
+        // Rows: the nodes the particles' stencils reach (compact rows), not the whole box.
+        let nodes = it.row_count(grid.len());
         let groups = self.interfaces.groups;
         let interface = groups > 1;
-        // One value per node and group: grown once, at the first step.
-        for a in scratch.iter_mut() {
-            if a.len() != nodes * groups {
-                a.resize(nodes * groups, 0.0);
-            }
+        // One value per row and group (the core sizes them with the stencils).
+        if scratch.iter().any(|a| a.len() != nodes * groups) {
+            debug_assert!(
+                false,
+                "the thermal scratch arrays do not match the stencils' rows"
+            );
+            return;
         }
         let (main, extra) = scratch.split_at_mut(ARRAYS.min(scratch.len()));
         let [
@@ -273,7 +276,7 @@ impl Thermal {
                     if cap[row] <= 0.0 {
                         continue;
                     }
-                    let c = grid.coords(row % nodes)[face.axis];
+                    let c = grid.coords(it.grid_node(row % nodes))[face.axis];
                     if let Some(t) = &b.temperature {
                         if face.on_or_behind(c) {
                             fixed[row] = t.at(time);
@@ -479,6 +482,10 @@ impl PhysicsLaw for Thermal {
             });
         }
         f
+    }
+
+    fn values_per_row(&self) -> usize {
+        self.interfaces.groups
     }
 
     fn grid_arrays(&self) -> usize {

@@ -9,6 +9,10 @@ use super::{AntiLocking, Scene, Shape};
 use crate::grid_activity::{BLOCK_NODES, MAX_BLOCKS_PER_PARTICLE};
 use std::sync::OnceLock;
 
+/// Physics sections whose node arrays cover only the nodes the particles' stencils reach
+/// (compact rows, `Interpolation::compact`), so they keep a sparse grid's estimate.
+const COMPACT_PHYSICS: [&str; 2] = ["thermal", "phase_change"];
+
 /// Most nodes a grid may span: a sparse grid reserves address space for the whole box
 /// (32 bytes a node in 3D: 0.5 TB here), though it takes memory only where particles are.
 pub const MAX_GRID_SPAN_NODES: f64 = 1.6e10;
@@ -265,8 +269,13 @@ pub fn estimate(s: &Scene) -> Estimate {
     }
     e.grid_span_nodes = e.grid_nodes;
     // A sparse grid holds only the blocks particles reach. The estimate leaves it out where
-    // the scene keeps other arrays over the whole box (F-bar's, physics operators').
-    let dense_arrays = s.solver.anti_locking == AntiLocking::Fbar || !s.physics.is_empty();
+    // the scene keeps other arrays over the whole box (F-bar's, and those of physics
+    // operators other than heat conduction and phase change, whose node arrays follow the
+    // particles' stencils).
+    let dense_arrays = s.solver.anti_locking == AntiLocking::Fbar
+        || s.physics
+            .keys()
+            .any(|k| !COMPACT_PHYSICS.contains(&k.as_str()));
     if s.solver.sparse_grid(s.contact.is_some()) && !dense_arrays {
         let reach = e.particles() * (MAX_BLOCKS_PER_PARTICLE * BLOCK_NODES) as f64;
         e.grid_nodes = e.grid_nodes.min(reach);

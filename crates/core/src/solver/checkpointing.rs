@@ -155,6 +155,12 @@ where
         self.ledger.openings = c.get("ledger.openings", 1).map_or(0.0, |v| v[0]);
         self.restore_statistics(&mut s)?;
         self.stress_scratch.restore(c)?;
+        // The physics operators' stencils and scratch rows at the restored positions (the
+        // next step builds them again where particles moved; a resume with no step left
+        // reports the same node arrays as the run that wrote the checkpoint).
+        if !self.physics.is_empty() && self.needs_interpolation {
+            self.build_physics_stencils();
+        }
         if let Some(r) = &mut self.reference {
             r.restore_state(c.state("reference").clone())
                 .map_err(|e| CheckpointError::Invalid(format!("reference: {e}")))?;
@@ -192,11 +198,7 @@ where
         // set their fields' initial values.
         if !self.physics.is_empty() {
             if self.needs_interpolation {
-                super::interpolation::build_interpolation::<D, K>(
-                    &self.grid,
-                    &self.particles,
-                    &mut self.interpolation,
-                );
+                self.build_physics_stencils();
             }
             let fresh: Vec<bool> = self
                 .physics

@@ -8,6 +8,7 @@ use crate::kernels::Kernel;
 use crate::particles::Particles;
 use crate::physics::Interpolation;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Fills `out` for the particles' current positions; buffers are reused between steps. A
 /// particle whose stencil leaves the grid gets zero weights (the kinematic check stops the
@@ -62,4 +63,127 @@ pub(crate) fn build_interpolation<const D: usize, K: Kernel>(
             });
         }
     });
+}
+
+/// Builds the stencils as [`build_interpolation`] does, with compact rows
+/// ([`number_rows`]): the physics operators' node arrays then cover the body's nodes, not
+/// the box.
+pub(crate) fn build_compact_interpolation<const D: usize, K: Kernel>(
+    grid: &Grid<D>,
+    particles: &Particles<D>,
+    out: &mut Interpolation<D>,
+) {
+    build_interpolation::<D, K>(grid, particles, out);
+    number_rows(grid.len(), out);
+}
+
+/// Numbers the nodes of `out`'s stencil entries (grid nodes, of `grid_nodes`) in grid
+/// order and makes `node` hold those rows ([`Interpolation::compact`]). One bit per grid
+/// node marks the reached nodes, one bit per 64 of those words says which words hold any,
+/// so a build costs the entries plus 1/4096 of the box, and clearing costs the last rows.
+/// Buffers are reused: no allocation once grown.
+fn number_rows<const D: usize>(grid_nodes: usize, out: &mut Interpolation<D>) {
+    let words = grid_nodes.div_ceil(64);
+    if out.marks.len() != words {
+        out.marks.clear();
+        out.marks.resize_with(words, AtomicU64::default);
+        out.summary.clear();
+        out.summary
+            .resize_with(words.div_ceil(64), AtomicU64::default);
+        out.rank.clear();
+        out.rank.resize(words, 0);
+        out.rows.clear();
+    }
+    // Clear what the last numbering marked.
+    for &row in &out.rows {
+        let w = row as usize / 64;
+        out.marks[w].store(0, Ordering::Relaxed);
+        out.summary[w / 64].store(0, Ordering::Relaxed);
+    }
+    let (marks, summary) = (&out.marks, &out.summary);
+    out.node.par_chunks(4096).for_each(|chunk| {
+        for &i in chunk {
+            let (w, bit) = (i as usize / 64, 1u64 << (i % 64));
+            // Neighbouring entries mostly set bits already set: read before writing.
+            if marks[w].load(Ordering::Relaxed) & bit == 0 {
+                marks[w].fetch_or(bit, Ordering::Relaxed);
+                let flag = 1u64 << (w % 64);
+                if summary[w / 64].load(Ordering::Relaxed) & flag == 0 {
+                    summary[w / 64].fetch_or(flag, Ordering::Relaxed);
+                }
+            }
+        }
+    });
+    out.rows.clear();
+    let mut before = 0u32;
+    for (s, flags) in out.summary.iter().enumerate() {
+        let mut flags = flags.load(Ordering::Relaxed);
+        while flags != 0 {
+            let w = s * 64 + flags.trailing_zeros() as usize;
+            flags &= flags - 1;
+            out.rank[w] = before;
+            let mut bits = out.marks[w].load(Ordering::Relaxed);
+            before += bits.count_ones();
+            while bits != 0 {
+                out.rows.push((w * 64) as u32 + bits.trailing_zeros());
+                bits &= bits - 1;
+            }
+        }
+    }
+    let (marks, rank) = (&out.marks, &out.rank);
+    out.node.par_chunks_mut(4096).for_each(|chunk| {
+        for i in chunk {
+            let (w, bit) = (*i as usize / 64, *i % 64);
+            let below = marks[w].load(Ordering::Relaxed) & ((1u64 << bit) - 1);
+            *i = rank[w] + below.count_ones();
+        }
+    });
+    out.compact = true;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Compact rows name every reached node once, in grid order, and map each stencil
+    /// entry back to its grid node; numbered again, they follow the new entries.
+    #[test]
+    fn compact_rows_number_the_reached_nodes_in_grid_order() {
+        let grid_nodes = 50_000;
+        let mut k = 11u64;
+        let mut next = |limit: u32| {
+            k = k
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (k >> 33) as u32 % limit
+        };
+        // One numbering reused: each round clears what the last one marked.
+        let mut it = Interpolation::<3> {
+            stencil: 27,
+            ..Interpolation::default()
+        };
+        for round in 0..4 {
+            // Clusters of nearby nodes (shared between entries), moving from round to
+            // round, plus the last node.
+            let mut plain: Vec<u32> = (0..27 * 300)
+                .map(|e| (e / 500) as u32 * (3000 - 500 * round) + next(700) + 37 * round)
+                .collect();
+            plain.push(grid_nodes as u32 - 1);
+            it.node = plain.clone();
+            number_rows(grid_nodes, &mut it);
+            let mut reached = plain.clone();
+            reached.sort_unstable();
+            reached.dedup();
+            assert!(it.compact);
+            assert_eq!(it.rows, reached);
+            assert!(it.rows.len() < plain.len());
+            assert_eq!(it.row_count(grid_nodes), reached.len());
+            for (e, &row) in it.node.iter().enumerate() {
+                assert_eq!(it.grid_node(row as usize), plain[e] as usize);
+            }
+        }
+        let plain = Interpolation::<3>::default();
+        assert_eq!(plain.row_count(grid_nodes), grid_nodes);
+        assert_eq!(plain.grid_node(17), 17);
+    }
 }

@@ -469,8 +469,9 @@ where
                     .physics
                     .iter()
                     .flat_map(|slot| &slot.scratch)
-                    .map(|a| a.capacity() * 8)
+                    .map(|a| a.len() * 8)
                     .sum::<usize>()
+                + self.interpolation.numbering_bytes()
                 + self.contact.as_ref().map_or(0, MultiField::bytes),
             energy_drift: drift,
             max_energy_drift: max_drift,

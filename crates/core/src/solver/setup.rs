@@ -235,7 +235,16 @@ where
             .iter()
             .map(|(_, p)| PhysicsSlot {
                 physics: p.clone(),
-                scratch: vec![vec![0.0; grid.len()]; p.grid_arrays()],
+                // Sized with the stencils (`Simulation::build_physics_stencils`); an
+                // operator without stencils gets one row per grid node.
+                scratch: vec![
+                    if p.needs_interpolation() {
+                        Vec::new()
+                    } else {
+                        vec![0.0; grid.len() * p.values_per_row()]
+                    };
+                    p.grid_arrays()
+                ],
             })
             .collect();
         let needs_interpolation = physics.iter().any(|p| p.physics.needs_interpolation());

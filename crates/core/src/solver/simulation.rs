@@ -5,7 +5,7 @@ use super::DimensionDispatch;
 use super::binning::{Reorder, SlabBins};
 use super::grid_to_particle::{G2pParams, grid_to_particle, measure};
 use super::grid_update::{GridParams, GridWork, update_grid};
-use super::interpolation::build_interpolation;
+use super::interpolation::build_compact_interpolation;
 use super::mode::StepMode;
 use super::multi_field::MultiField;
 use super::particle_to_grid::{ForceTerm, P2gParams, particle_to_grid};
@@ -230,13 +230,26 @@ where
         }
         let start = Instant::now();
         if self.needs_interpolation && (moved || self.interpolation.node.is_empty()) {
-            build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+            self.build_physics_stencils();
         }
         for stage in [Stage::Prepare, Stage::Advance, Stage::Finish] {
             self.physics_stage(stage, dt);
         }
         self.physics_dt = self.compute_physics_dt();
         self.clock.add(StepStage::Physics, start);
+    }
+
+    /// Builds the physics operators' stencils with compact rows at the current positions
+    /// and sizes each operator's scratch arrays to them.
+    pub(super) fn build_physics_stencils(&mut self) {
+        build_compact_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+        let rows = self.interpolation.row_count(self.grid.len());
+        for slot in &mut self.physics {
+            let len = rows * slot.physics.values_per_row();
+            for a in &mut slot.scratch {
+                a.resize(len, 0.0);
+            }
+        }
     }
 
     /// Stress update of every material (none with mechanics off).
@@ -394,7 +407,7 @@ where
     pub(super) fn initialise(&mut self) {
         if !self.physics.is_empty() {
             if self.needs_interpolation {
-                build_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
+                self.build_physics_stencils();
             }
             for stage in [Stage::Initialise, Stage::Prepare, Stage::Finish] {
                 self.physics_stage(stage, 0.0);

@@ -184,6 +184,7 @@ mod tests {
             node: vec![0, 0, 1],
             weight: vec![1.0; 3],
             gradient: vec![Default::default(); 3],
+            ..Interpolation::default()
         };
         let entry_dof = [0u32, 0, 1];
         let volume = [1.0, 3.0, 2.0];

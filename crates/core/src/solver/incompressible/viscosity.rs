@@ -586,6 +586,7 @@ mod tests {
             gradient: (0..particles * stencil)
                 .map(|e| Vector::<2>::new(r[3 * e + 1] * 100.0, r[3 * e + 2] * 100.0))
                 .collect(),
+            ..Interpolation::default()
         };
         let mut mask = vec![1.0; nodes * 2];
         // Ghosts 0 and 1 (no mass, no unknowns), node 2 stuck, node 3 held along y.
