@@ -244,7 +244,12 @@ where
     pub(super) fn build_physics_stencils(&mut self) {
         build_compact_interpolation::<D, K>(&self.grid, &self.particles, &mut self.interpolation);
         let rows = self.interpolation.row_count(self.grid.len());
-        for slot in &mut self.physics {
+        // An operator without stencils keeps one row per grid node (set-up).
+        for slot in self
+            .physics
+            .iter_mut()
+            .filter(|s| s.physics.needs_interpolation())
+        {
             let len = rows * slot.physics.values_per_row();
             for a in &mut slot.scratch {
                 a.resize(len, 0.0);
