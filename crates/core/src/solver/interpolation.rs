@@ -21,6 +21,8 @@ pub(crate) fn build_interpolation<const D: usize, K: Kernel>(
     let n = particles.len();
     let stencil = K::SPAN.pow(D as u32);
     out.stencil = stencil;
+    // Grid nodes, until `number_rows` makes them rows.
+    out.compact = false;
     out.node.resize(n * stencil, 0);
     out.weight.resize(n * stencil, 0.0);
     out.gradient
