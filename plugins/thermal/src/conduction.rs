@@ -150,10 +150,16 @@ impl Thermal {
         let interface = groups > 1;
         // One value per row and group (the core sizes them with the stencils).
         if scratch.iter().any(|a| a.len() != nodes * groups) {
-            debug_assert!(
-                false,
-                "the thermal scratch arrays do not match the stencils' rows"
-            );
+            // A core fault, not the scene's: stop the run saying so rather than skip the step.
+            report.fail(PhysicsFault {
+                field: "temperature".into(),
+                particle: None,
+                value: scratch.first().map_or(0, Vec::len) as f64,
+                message: format!(
+                    "the conduction's node arrays do not match the {} rows of the stencils",
+                    nodes * groups
+                ),
+            });
             return;
         }
         let (main, extra) = scratch.split_at_mut(ARRAYS.min(scratch.len()));

@@ -158,7 +158,7 @@ where
         // The physics operators' stencils and scratch rows at the restored positions (the
         // next step builds them again where particles moved; a resume with no step left
         // reports the same node arrays as the run that wrote the checkpoint).
-        if !self.physics.is_empty() && self.needs_interpolation {
+        if self.needs_interpolation {
             self.build_physics_stencils();
         }
         if let Some(r) = &mut self.reference {
