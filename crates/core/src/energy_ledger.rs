@@ -26,11 +26,16 @@ pub struct EnergyLedger {
     /// Mechanical energy (kinetic + gravity potential) liquid brought in through inlets
     /// less what it carried out through open faces, at the crossing.
     pub openings: f64,
+    /// Energy the liquids' viscosity dissipated (incompressible mode): the viscous stress
+    /// power Σ_p V_p σ_p : L_p of the liquid particles at the end of each step, times the
+    /// step.
+    pub viscous: f64,
 }
 
 impl EnergyLedger {
-    /// The entries in declaration order but `openings` (for checkpoints, which keep
-    /// `openings` apart so that those written before it existed still restore).
+    /// The entries in declaration order but `openings` and `viscous` (for checkpoints,
+    /// which keep those apart so that checkpoints written before they existed still
+    /// restore).
     pub fn to_array(&self) -> [f64; 6] {
         [
             self.boundaries,
@@ -42,7 +47,7 @@ impl EnergyLedger {
         ]
     }
 
-    /// The ledger whose [`EnergyLedger::to_array`] is `a` (`openings` 0).
+    /// The ledger whose [`EnergyLedger::to_array`] is `a` (`openings` and `viscous` 0).
     pub fn from_array(a: [f64; 6]) -> Self {
         let [
             boundaries,
@@ -60,6 +65,7 @@ impl EnergyLedger {
             friction,
             cohesive,
             openings: 0.0,
+            viscous: 0.0,
         }
     }
 
@@ -71,6 +77,6 @@ impl EnergyLedger {
 
     /// Everything dissipated by a physical cause.
     pub fn dissipated(&self) -> f64 {
-        self.damping + self.plastic + self.friction + self.cohesive
+        self.damping + self.plastic + self.friction + self.cohesive + self.viscous
     }
 }

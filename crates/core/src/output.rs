@@ -36,6 +36,7 @@ pub const FRAME_DIAGNOSTICS: &[&str] = &[
     "dissipated_energy",
     "energy_error",
     "angular_momentum",
+    "surface_energy",
 ];
 
 /// Static facts about a run, given to the writer before the first frame.
@@ -261,9 +262,10 @@ pub struct Metrics {
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub stage_seconds: std::collections::BTreeMap<String, f64>,
     /// The method's energy error at the end: the change of the total (kinetic + strain +
-    /// gravity) energy less what the `energy_ledger` explains (work done on the bodies,
-    /// damping, plastic, friction and cohesive dissipation), relative to the largest
-    /// mechanical (kinetic + strain) energy seen; negative: the method lost energy
+    /// gravity + a liquid's surface) energy less what the `energy_ledger` explains (work
+    /// done on the bodies, liquid through openings, damping, plastic, friction, cohesive
+    /// and viscous dissipation), relative to the largest mechanical (kinetic + strain +
+    /// |surface|) energy seen; negative: the method lost energy
     /// (numerical dissipation, impacts against fixed surfaces, wall friction).
     pub energy_drift: f64,
     /// Work done on the body by moving obstacles and by changing free strains (thermal

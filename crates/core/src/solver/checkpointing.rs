@@ -101,6 +101,8 @@ where
         ]);
         s.push(&self.ledger.to_array());
         c.put("ledger.openings", vec![self.ledger.openings]);
+        c.put("ledger.viscous", vec![self.ledger.viscous]);
+        c.put("simulation.surface_energy", vec![self.surface_energy]);
         let k = &self.kinematics;
         s.push(&[k.kinetic_energy]);
         s.push(k.momentum.as_slice());
@@ -153,6 +155,9 @@ where
         self.ledger = crate::energy_ledger::EnergyLedger::from_array(s.take_n()?);
         // Absent from checkpoints written before inlets existed.
         self.ledger.openings = c.get("ledger.openings", 1).map_or(0.0, |v| v[0]);
+        // Absent from checkpoints written before the viscous dissipation was booked.
+        self.ledger.viscous = c.get("ledger.viscous", 1).map_or(0.0, |v| v[0]);
+        self.surface_energy = c.get("simulation.surface_energy", 1).map_or(0.0, |v| v[0]);
         self.restore_statistics(&mut s)?;
         self.stress_scratch.restore(c)?;
         // The physics operators' stencils and scratch rows at the restored positions (the
@@ -237,6 +242,7 @@ where
         }
         self.ledger = crate::energy_ledger::EnergyLedger::default();
         self.kinematics = super::grid_to_particle::measure(&self.particles, self.settings.gravity);
+        self.measure_stored_energy();
         self.energy0 = self.total_energy();
         Ok(())
     }

@@ -25,6 +25,10 @@ pub(crate) trait StepMode<const D: usize, K: Kernel>: Send {
     /// Writes what the mode keeps from step to step into a checkpoint (and drops caches it
     /// would rebuild after a resume, so the run goes on as a resumed one does).
     fn save(&mut self, _checkpoint: &mut Checkpoint) {}
+    /// Sets [`Simulation`]'s `surface_energy` (and any other energy the mode stores) at
+    /// the current positions, before a run or a stage takes its starting energy; nothing
+    /// by default.
+    fn measure_stored_energy(&mut self, _sim: &mut Simulation<D, K>) {}
     /// Takes back what [`StepMode::save`] wrote.
     fn restore(&mut self, _checkpoint: &Checkpoint) -> Result<(), CheckpointError> {
         Ok(())

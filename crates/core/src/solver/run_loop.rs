@@ -136,7 +136,7 @@ where
             k.kinetic_energy,
             strain,
             k.gravity_energy,
-            k.kinetic_energy + strain + k.gravity_energy,
+            self.total_energy(),
             k.max_speed,
             k.min_det_f,
             k.momentum.norm(),
@@ -144,6 +144,7 @@ where
             self.ledger.dissipated(),
             self.total_energy() - self.ledger.net_input() - self.energy0,
             now.angular_momentum(),
+            self.surface_energy,
         ];
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {
@@ -380,7 +381,8 @@ where
             }
             failures.observe(&self.particles, self.time);
             let k = &self.kinematics;
-            let mechanical = k.kinetic_energy + self.stresses.batch.strain_energy;
+            let mechanical =
+                k.kinetic_energy + self.stresses.batch.strain_energy + self.surface_energy.abs();
             run.mechanical_max = run.mechanical_max.max(mechanical);
             // Energy balance: what the bodies gained beyond the work done on them from outside
             // and the energy physical causes dissipated (the ledger): the method's error.

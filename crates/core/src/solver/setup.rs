@@ -273,6 +273,7 @@ where
             stresses: StressStats::default(),
             ledger: Default::default(),
             energy0: 0.0,
+            surface_energy: 0.0,
             // The implicit mode averages over its own patches (`implicit/fbar.rs`).
             volume_average: (fbar && !implicit).then(|| VolumeAverage::new(grid_nodes)),
             physics,

@@ -81,8 +81,13 @@ pub struct Simulation<const D: usize, K: Kernel> {
     pub(super) stresses: StressStats,
     /// Work done on the bodies and energy dissipated, by cause, since the run started.
     pub(super) ledger: EnergyLedger,
-    /// Total (kinetic + strain + gravity) energy at the start of the run.
+    /// Total (kinetic + strain + gravity + surface) energy at the start of the run.
     pub(super) energy0: f64,
+    /// Energy stored in the liquids' surfaces (incompressible mode with surface tension):
+    /// σ times the free surface's area, plus (γ_SL − γ_SV) = −σ cos θ times the area the
+    /// liquid wets on walls and obstacles with a contact angle, J (J/m in 2D); 0 elsewhere.
+    /// Measured at the positions the last step started from.
+    pub(super) surface_energy: f64,
     pub(super) volume_average: Option<VolumeAverage>,
     pub(super) physics: Vec<PhysicsSlot>,
     pub(super) interpolation: Interpolation<D>,
@@ -138,11 +143,21 @@ where
         self.ledger
     }
 
-    /// Kinetic + strain + gravitational energy after the last step.
+    /// Kinetic + strain + gravitational + surface energy after the last step.
     pub fn total_energy(&self) -> f64 {
         self.kinematics.kinetic_energy
             + self.stresses.batch.strain_energy
             + self.kinematics.gravity_energy
+            + self.surface_energy
+    }
+
+    /// Lets the mode measure the energy it stores itself (the liquids' surface energy) at
+    /// the current positions, before a run or a stage takes its starting energy.
+    pub(super) fn measure_stored_energy(&mut self) {
+        if let Some(mut mode) = self.mode.take() {
+            mode.measure_stored_energy(self);
+            self.mode = Some(mode);
+        }
     }
 
     /// The largest stable step for the current state (Courant number 1), as the run's
@@ -425,6 +440,7 @@ where
         self.clock = clock;
         self.ledger = EnergyLedger::default();
         self.kinematics = measure(&self.particles, self.settings.gravity);
+        self.measure_stored_energy();
         self.energy0 = self.total_energy();
     }
 }

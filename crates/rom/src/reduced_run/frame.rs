@@ -16,7 +16,7 @@ where
 {
     /// Evaluates the map at every particle and fills the output buffers; returns the
     /// frame's diagnostics.
-    fn evaluate_frame(&mut self, dt: f64, steps: u64) -> Result<[f64; 13], RomError> {
+    fn evaluate_frame(&mut self, dt: f64, steps: u64) -> Result<[f64; 14], RomError> {
         let n = self.all.len();
         self.map.positions(&self.q, &self.all, &mut self.all_x)?;
         self.map
@@ -100,7 +100,8 @@ where
             momentum.norm(),
             // The reduced run keeps no energy ledger and no conservation totals: no
             // boundary work, nothing booked as dissipated, no energy error or angular
-            // momentum measured.
+            // momentum measured, no surface energy (solids only).
+            0.0,
             0.0,
             0.0,
             0.0,
@@ -116,7 +117,7 @@ where
         time: f64,
         dt: f64,
         steps: u64,
-    ) -> Result<[f64; 13], RomError> {
+    ) -> Result<[f64; 14], RomError> {
         let diagnostics = self.evaluate_frame(dt, steps)?;
         debug_assert_eq!(diagnostics.len(), FRAME_DIAGNOSTICS.len());
         sink.write_frame(&Frame {

@@ -72,6 +72,8 @@ pub(in crate::solver) struct Inflows<const D: usize> {
     parked: Vec<(usize, Vector<D>)>,
     /// Volume of the domain's open cells, measured on the first step.
     open_volume: Option<f64>,
+    /// The particles that entered in the last step (for their pumping work).
+    entered: Vec<usize>,
 }
 
 impl<const D: usize> Inflows<D> {
@@ -113,7 +115,13 @@ impl<const D: usize> Inflows<D> {
             outlets,
             parked: Vec::new(),
             open_volume: None,
+            entered: Vec::new(),
         })
+    }
+
+    /// The particles that entered in the last step.
+    pub(super) fn entered(&self) -> &[usize] {
+        &self.entered
     }
 
     /// Whether liquid enters anywhere (the pressure equation's volume source is for them).
@@ -194,6 +202,7 @@ where
         sim.inflow = Some(inflows);
         return;
     };
+    inflows.entered.clear();
     let mut entering = 0.0;
     let mut due = 0usize;
     for &(i, x) in &inflows.parked {
@@ -271,6 +280,7 @@ where
             *l = Matrix::<D>::zeros();
         }
         injected[i] = 1.0;
+        inflows.entered.push(i);
     }
     sim.inflow = Some(inflows);
 }

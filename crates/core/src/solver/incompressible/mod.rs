@@ -42,6 +42,7 @@
 //! between steps 1 and 2; the viscous bound then goes.
 
 mod enclosed_air;
+mod energy_balance;
 mod extrapolate;
 pub(super) mod inflow;
 mod outflow;
@@ -95,6 +96,9 @@ pub(super) struct Incompressible<const D: usize> {
     /// Cells behind a wall or inside an obstacle (at its initial place): neither liquid
     /// nor free surface.
     cell_solid: Vec<bool>,
+    /// Per node: the fraction of its cells that are not solid (the surface energy's
+    /// weight; energy_balance.rs).
+    open: Vec<f64>,
     /// Per node: 1/diagonal on the free (pressure-unknown) nodes, 0 on the free surface.
     inverse_diagonal: Vec<f64>,
     /// Per node: the projection's lumped mass Σ_c ρ_c ∫_c N_i over the liquid cells (0 off
@@ -142,6 +146,7 @@ impl<const D: usize> Incompressible<D> {
             cell_volume: Vec::new(),
             cell_node: Vec::new(),
             cell_solid: Vec::new(),
+            open: Vec::new(),
             free_velocity: Vec::new(),
             inverse_diagonal: Vec::new(),
             lumped_mass: Vec::new(),
@@ -234,6 +239,12 @@ impl<const D: usize> Incompressible<D> {
                 boundaries.cell_is_solid(ijk, &centre)
             })
             .collect();
+        self.open = energy_balance::open_fraction(
+            grid,
+            &self.cell_solid,
+            &self.cell_node,
+            &self.corner_offset[..corners],
+        );
         let n = grid.len();
         self.free_velocity = vec![Vector::<D>::zeros(); n];
         self.correction = vec![Vector::<D>::zeros(); n];
@@ -296,7 +307,21 @@ where
             group.material.forget_viscosity_bound();
         }
         sim.update_stresses(dt);
+        sim.ledger.viscous += energy_balance::viscous_power(&sim.particles) * dt;
         self.pressure_to_particles(sim);
+        sim.ledger.openings += self.pumping_work(sim);
+    }
+
+    /// The surface energy at the start: the colour of a P2G of the particles' mass.
+    fn measure_stored_energy(&mut self, sim: &mut Simulation<D, K>) {
+        self.prepare(&sim.grid, &sim.boundaries, &sim.particles.groups);
+        let Some(surface) = self.surface.as_mut() else {
+            return;
+        };
+        sim.bins.rebuild::<D, K>(&sim.grid, &sim.particles);
+        sim.grid.clear();
+        sim.p2g(0.0, true, ForceTerm::Body);
+        sim.surface_energy = surface.measure(&sim.grid, &self.open);
     }
 
     /// The pressure solve is warm-started from the last pressure; a resumed run starts it
@@ -464,6 +489,7 @@ impl<const D: usize> Incompressible<D> {
                 &self.inverse_diagonal,
                 &mut self.pressure,
             );
+            sim.surface_energy = surface.energy(&sim.grid, &self.open);
         }
         let n = sim.grid.len();
         if let Some(mut air) = self.air.take() {

@@ -143,7 +143,6 @@ impl<const D: usize> Incompressible<D> {
     /// Interpolates the nodal pressure (cell shape functions) into the liquids' `pressure`
     /// state field.
     pub(super) fn pressure_to_particles<K: Kernel>(&self, sim: &mut Simulation<D, K>) {
-        let corners = 1 << D;
         let grid = &sim.grid;
         let crate::particles::Particles {
             groups, position, ..
@@ -159,19 +158,25 @@ impl<const D: usize> Incompressible<D> {
             };
             let out = &mut group.state[field];
             for (k, i) in group.range.clone().enumerate() {
-                let (c, s) = cell_of(grid, &position[i]);
-                let base = self.cell_node[c];
-                let mut value = 0.0;
-                for a in 0..corners {
-                    let mut w = 1.0;
-                    for (d, sd) in s.iter().enumerate().take(D) {
-                        w *= if (a >> d) & 1 == 1 { *sd } else { 1.0 - sd };
-                    }
-                    value += w * self.pressure[base + self.corner_offset[a]];
-                }
-                out[k] = value;
+                out[k] = self.pressure_at(grid, &position[i]);
             }
         }
+    }
+
+    /// The nodal pressure interpolated with the cell's bilinear (trilinear) shape
+    /// functions at `x`.
+    pub(super) fn pressure_at(&self, grid: &crate::grid::Grid<D>, x: &Vector<D>) -> f64 {
+        let (c, s) = cell_of(grid, x);
+        let base = self.cell_node[c];
+        let mut value = 0.0;
+        for a in 0..1 << D {
+            let mut w = 1.0;
+            for (d, sd) in s.iter().enumerate().take(D) {
+                w *= if (a >> d) & 1 == 1 { *sd } else { 1.0 - sd };
+            }
+            value += w * self.pressure[base + self.corner_offset[a]];
+        }
+        value
     }
 }
 

@@ -68,14 +68,14 @@ pub(super) fn stable_dt(sigma: f64, density: f64, dx: f64) -> f64 {
 /// The colour field, its normals and curvature, and the scene's liquid constants.
 pub(super) struct SurfaceTension<const D: usize> {
     /// Surface tension σ, N/m (liquid against the void).
-    sigma: f64,
+    pub(super) sigma: f64,
     /// Density ρ of the liquid, kg/m³ (the colour is the nodal mass over ρ·dx^D).
     density: f64,
     /// Per node: the colour c, smoothed (and a scratch copy for the smoothing passes).
-    colour: Vec<f64>,
+    pub(super) colour: Vec<f64>,
     scratch: Vec<f64>,
     /// Per node: ∇c (zero where undefined).
-    gradient: Vec<Vector<D>>,
+    pub(super) gradient: Vec<Vector<D>>,
     /// Per node: inward unit normal ∇c/|∇c| (zero where the colour is flat).
     normal: Vec<Vector<D>>,
     /// Per node: −∇·n where every neighbour's normal is defined, else NaN.
@@ -83,10 +83,10 @@ pub(super) struct SurfaceTension<const D: usize> {
     /// Per node: whether a liquid cell touches it.
     touches_liquid: Vec<bool>,
     /// The walls, across which the colour is mirrored.
-    walls: Vec<WallPlane>,
+    pub(super) walls: Vec<WallPlane>,
     /// The nodes near obstacles' surfaces, inside (which take the colour's image) and in
     /// front (which take the image's share of what the particles put inside).
-    solid_images: Vec<SolidImage<D>>,
+    pub(super) solid_images: Vec<SolidImage<D>>,
 }
 
 impl<const D: usize> SurfaceTension<D> {
@@ -124,14 +124,7 @@ impl<const D: usize> SurfaceTension<D> {
         pressure: &mut [f64],
     ) {
         let n = grid.len();
-        if self.gradient.len() != n {
-            self.colour = vec![0.0; n];
-            self.scratch = vec![0.0; n];
-            self.gradient = vec![Vector::<D>::zeros(); n];
-            self.normal = vec![Vector::<D>::zeros(); n];
-            self.curvature = vec![f64::NAN; n];
-            self.touches_liquid = vec![false; n];
-        }
+        self.size_for(grid);
         self.touches_liquid.fill(false);
         for base in liquid_cell_nodes {
             for offset in corner_offset {
@@ -144,6 +137,19 @@ impl<const D: usize> SurfaceTension<D> {
             if self.touches_liquid[i] && inverse_diagonal[i] <= 0.0 {
                 pressure[i] = self.sigma * self.band_curvature(grid, i);
             }
+        }
+    }
+
+    /// Sizes the per-node arrays for `grid` (once).
+    pub(super) fn size_for(&mut self, grid: &Grid<D>) {
+        let n = grid.len();
+        if self.gradient.len() != n {
+            self.colour = vec![0.0; n];
+            self.scratch = vec![0.0; n];
+            self.gradient = vec![Vector::<D>::zeros(); n];
+            self.normal = vec![Vector::<D>::zeros(); n];
+            self.curvature = vec![f64::NAN; n];
+            self.touches_liquid = vec![false; n];
         }
     }
 
@@ -301,7 +307,7 @@ impl<const D: usize> SurfaceTension<D> {
     }
 
     /// ∇c and n = ∇c/|∇c| at every interior node.
-    fn colour_normals(&mut self, grid: &Grid<D>) {
+    pub(super) fn colour_normals(&mut self, grid: &Grid<D>) {
         self.colour(grid);
         let scale = 0.5 * grid.inv_dx;
         for i in 0..grid.len() {
