@@ -156,6 +156,32 @@ fn a_few_particles_in_a_large_box_take_a_few_blocks() {
     );
 }
 
+/// Two steel cubes of 2 cells a side, one at 400 K and one at 300 K, touching, in a cubic
+/// box from `min` to `max` of cells `h`, heat conduction (implicit) and mechanics off.
+fn hot_and_cold_cubes(h: f64, min: f64, max: f64) -> serde_json::Value {
+    let material = |t: f64| {
+        serde_json::json!({"conductivity": 50.0, "specific_heat": 500.0,
+        "initial_temperature": t})
+    };
+    let steel = serde_json::json!({"type": "linear_elastic", "density": 7800.0,
+        "youngs_modulus": 2e11, "poisson_ratio": 0.3});
+    let cube = |name: &str, x0: f64| {
+        serde_json::json!({"name": name, "material": name,
+        "particles_per_cell": 2, "shape": {"box": {"min": [x0, 0.5, 0.5],
+            "max": [x0 + 2.0 * h, 0.5 + 2.0 * h, 0.5 + 2.0 * h]}}})
+    };
+    serde_json::json!({
+        "name": "hot-and-cold", "dimension": 3,
+        "domain": {"min": [min, min, min], "max": [max, max, max], "cell_size": h},
+        "solver": {"end_time": 1.0, "dt": 0.1, "mechanics": "off", "kernel": "bspline2"},
+        "materials": {"hot": steel, "cold": steel},
+        "physics": {"thermal": {"integrator": "implicit",
+            "materials": {"hot": material(400.0), "cold": material(300.0)}}},
+        "bodies": [cube("hot", 0.5), cube("cold", 0.5 + 2.0 * h)],
+        "output": {"frames": 2, "fields": ["temperature"]}
+    })
+}
+
 /// Heat conduction between a hot and a cold cube, 2 cells each, in a 1 m box at 1/520 m
 /// cells: the conduction's node arrays cover the nodes the particles' stencils reach, not
 /// the box's 521³ (11 arrays of them would be 12 GB, which the limits used to refuse). The
@@ -163,29 +189,7 @@ fn a_few_particles_in_a_large_box_take_a_few_blocks() {
 #[test]
 fn heat_conduction_in_a_large_box_holds_arrays_for_its_own_nodes() {
     let h = 1.0 / 520.0;
-    let scene = |min: f64, max: f64| {
-        let material = |t: f64| {
-            serde_json::json!({"conductivity": 50.0, "specific_heat": 500.0,
-            "initial_temperature": t})
-        };
-        let steel = serde_json::json!({"type": "linear_elastic", "density": 7800.0,
-            "youngs_modulus": 2e11, "poisson_ratio": 0.3});
-        let cube = |name: &str, x0: f64| {
-            serde_json::json!({"name": name, "material": name,
-            "particles_per_cell": 2, "shape": {"box": {"min": [x0, 0.5, 0.5],
-                "max": [x0 + 2.0 * h, 0.5 + 2.0 * h, 0.5 + 2.0 * h]}}})
-        };
-        serde_json::json!({
-            "name": "hot-and-cold", "dimension": 3,
-            "domain": {"min": [min, min, min], "max": [max, max, max], "cell_size": h},
-            "solver": {"end_time": 1.0, "dt": 0.1, "mechanics": "off", "kernel": "bspline2"},
-            "materials": {"hot": steel, "cold": steel},
-            "physics": {"thermal": {"integrator": "implicit",
-                "materials": {"hot": material(400.0), "cold": material(300.0)}}},
-            "bodies": [cube("hot", 0.5), cube("cold", 0.5 + 2.0 * h)],
-            "output": {"frames": 2, "fields": ["temperature"]}
-        })
-    };
+    let scene = |min: f64, max: f64| hot_and_cold_cubes(h, min, max);
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, min: f64, max: f64| {
         let path = write_scene(dir.path(), name, &scene(min, max));
@@ -213,4 +217,23 @@ fn heat_conduction_in_a_large_box_holds_arrays_for_its_own_nodes() {
     assert!((mean(&t_large) - 350.0).abs() < 1e-9, "{}", mean(&t_large));
     let (hot, cold) = (mean(&t_large[..64]), mean(&t_large[64..]));
     assert!(hot < 395.0 && cold > 305.0, "hot {hot} K, cold {cold} K");
+}
+
+#[test]
+fn physics_whose_arrays_follow_the_particles_keep_the_sparse_estimate() {
+    // The budget asks the registry which physics sections keep their node arrays to the
+    // particles' stencils (heat conduction declares it): the large box's 1.45e8 nodes are
+    // then estimated by the blocks 128 particles can reach at most (2.1e6 nodes); a
+    // section that does not declare it keeps the box.
+    let registry = mpm_cli::default_registry();
+    let json = hot_and_cold_cubes(1.0 / 520.0, 0.0, 1.0);
+    let mut scene: mpm_core::scene::Scene =
+        mpm_core::scene::deserialize_at(&json, "$").expect("scene");
+    let sparse = mpm_core::scene::estimate(&scene, &registry).grid_nodes;
+    let section = scene.physics.remove("thermal").unwrap();
+    scene.physics.insert("not_declared".into(), section);
+    let dense = mpm_core::scene::estimate(&scene, &registry).grid_nodes;
+    println!("grid nodes: {sparse:.3e} with heat conduction, {dense:.3e} otherwise");
+    assert!(sparse < 1e7, "{sparse}");
+    assert!(dense > 1e8, "{dense}");
 }

@@ -442,6 +442,13 @@ pub trait PhysicsFactory: Send + Sync {
         path: &str,
         scene: &Scene,
     ) -> Result<Arc<dyn Physics>, Vec<Issue>>;
+    /// Whether the operator's node arrays cover only the nodes the particles' stencils
+    /// reach (compact rows, [`Interpolation`]'s `compact`), so that a scene naming it keeps
+    /// a sparse grid's small estimate in the budget check; `false` (arrays over the whole
+    /// grid box) by default.
+    fn node_arrays_follow_particles(&self) -> bool {
+        false
+    }
 }
 
 /// Checks a typed section and builds the operator (see [`TypedPhysicsFactory`]).
@@ -452,12 +459,24 @@ pub type BuildPhysicsFn<P> = fn(P, &str, &Scene) -> Result<Arc<dyn Physics>, Vec
 pub struct TypedPhysicsFactory<P> {
     name: &'static str,
     build: BuildPhysicsFn<P>,
+    compact_rows: bool,
 }
 
 impl<P> TypedPhysicsFactory<P> {
     /// A factory for the section `physics.<name>`.
     pub fn new(name: &'static str, build: BuildPhysicsFn<P>) -> Self {
-        Self { name, build }
+        Self {
+            name,
+            build,
+            compact_rows: false,
+        }
+    }
+
+    /// Declares that the operator sizes its node arrays by the stencils' rows (see
+    /// [`PhysicsFactory::node_arrays_follow_particles`]).
+    pub fn with_compact_rows(mut self) -> Self {
+        self.compact_rows = true;
+        self
     }
 }
 
@@ -481,6 +500,10 @@ where
     ) -> Result<Arc<dyn Physics>, Vec<Issue>> {
         let typed: P = crate::scene::deserialize_at(section, path).map_err(|e| vec![e])?;
         (self.build)(typed, path, scene)
+    }
+
+    fn node_arrays_follow_particles(&self) -> bool {
+        self.compact_rows
     }
 }
 

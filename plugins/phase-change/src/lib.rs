@@ -61,7 +61,9 @@ impl Plugin for PhaseChangePlugin {
     }
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
-        vec![Box::new(TypedPhysicsFactory::new("phase_change", build))]
+        vec![Box::new(
+            TypedPhysicsFactory::new("phase_change", build).with_compact_rows(),
+        )]
     }
 
     fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {

@@ -51,7 +51,9 @@ impl Plugin for ThermalPlugin {
     }
 
     fn physics(&self) -> Vec<Box<dyn PhysicsFactory>> {
-        vec![Box::new(TypedPhysicsFactory::new("thermal", build))]
+        vec![Box::new(
+            TypedPhysicsFactory::new("thermal", build).with_compact_rows(),
+        )]
     }
 
     fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {

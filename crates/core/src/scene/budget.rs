@@ -7,11 +7,8 @@ use super::Issue;
 use super::lattice::{BoxLattice, CentredLattice, MAX_SPACINGS, Region, bounding_box};
 use super::{AntiLocking, Scene, Shape};
 use crate::grid_activity::{BLOCK_NODES, MAX_BLOCKS_PER_PARTICLE};
+use crate::plugin::Registry;
 use std::sync::OnceLock;
-
-/// Physics sections whose node arrays cover only the nodes the particles' stencils reach
-/// (compact rows, `Interpolation::compact`), so they keep a sparse grid's estimate.
-const COMPACT_PHYSICS: [&str; 2] = ["thermal", "phase_change"];
 
 /// Most nodes a grid may span: a sparse grid reserves address space for the whole box
 /// (32 bytes a node in 3D: 0.5 TB here), though it takes memory only where particles are.
@@ -227,8 +224,11 @@ fn shape_cost(dim: usize, shape: &Shape, h: f64, region: &Region) -> (f64, f64) 
 }
 
 /// Estimates a scene's particles and grid without generating anything. Malformed parts
-/// (which validation reports) count as zero.
-pub fn estimate(s: &Scene) -> Estimate {
+/// (which validation reports) count as zero. The registry says which physics sections keep
+/// their node arrays to the particles' stencils
+/// ([`crate::physics::PhysicsFactory::node_arrays_follow_particles`]); an unknown section
+/// counts as one over the whole grid.
+pub fn estimate(s: &Scene, registry: &Registry) -> Estimate {
     let dim = s.dimension as usize;
     let mut e = Estimate::default();
     if dim != 2 && dim != 3 {
@@ -270,12 +270,13 @@ pub fn estimate(s: &Scene) -> Estimate {
     e.grid_span_nodes = e.grid_nodes;
     // A sparse grid holds only the blocks particles reach. The estimate leaves it out where
     // the scene keeps other arrays over the whole box (F-bar's, and those of physics
-    // operators other than heat conduction and phase change, whose node arrays follow the
-    // particles' stencils).
+    // operators whose node arrays do not follow the particles' stencils).
     let dense_arrays = s.solver.anti_locking == AntiLocking::Fbar
-        || s.physics
-            .keys()
-            .any(|k| !COMPACT_PHYSICS.contains(&k.as_str()));
+        || s.physics.keys().any(|k| {
+            !registry
+                .physics(k)
+                .is_some_and(|(_, f)| f.node_arrays_follow_particles())
+        });
     if s.solver.sparse_grid(s.contact.is_some()) && !dense_arrays {
         let reach = e.particles() * (MAX_BLOCKS_PER_PARTICLE * BLOCK_NODES) as f64;
         e.grid_nodes = e.grid_nodes.min(reach);
@@ -292,7 +293,7 @@ fn spacings_ok(dim: usize, shape: &Shape, h: f64) -> bool {
 /// Checks a scene against `limits` before anything is generated. Shapes reaching more than
 /// a cell beyond the domain are refused (unless the body clips to the domain) at the path of
 /// the offending number.
-pub(crate) fn check(s: &Scene, limits: &Limits) -> Vec<Issue> {
+pub(crate) fn check(s: &Scene, limits: &Limits, registry: &Registry) -> Vec<Issue> {
     let mut issues = Vec::new();
     let dim = s.dimension as usize;
     if dim != 2 && dim != 3 {
@@ -351,7 +352,7 @@ pub(crate) fn check(s: &Scene, limits: &Limits) -> Vec<Issue> {
     if !issues.is_empty() {
         return issues;
     }
-    let e = estimate(s);
+    let e = estimate(s, registry);
     if big(e.grid_nodes, limits.max_grid_nodes) {
         issues.push(Issue::new(
             "domain.cell_size",

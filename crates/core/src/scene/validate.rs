@@ -110,7 +110,7 @@ pub fn parse_scene_value_limited(
         dim: scene.dimension as usize,
     };
     v.check(&scene);
-    v.issues.extend(budget::check(&scene, limits));
+    v.issues.extend(budget::check(&scene, limits, registry));
     let reference = if v.dim == 2 || v.dim == 3 {
         v.build_reference(&scene, registry)
     } else {

@@ -236,7 +236,7 @@ fn check_scene(
     }
     // The particle count is estimated from the shapes before any is generated.
     if let Ok(scene) = mpm_core::scene::deserialize_at::<mpm_core::scene::Scene>(&value, "$") {
-        let estimated = mpm_core::scene::estimate(&scene);
+        let estimated = mpm_core::scene::estimate(&scene, registry);
         let estimate = estimated.particles();
         if estimate > max_particles as f64 {
             return Err(too_many_particles(
