@@ -153,7 +153,10 @@ where
 
     /// Lets the mode measure the energy it stores itself (the liquids' surface energy) at
     /// the current positions, before a run or a stage takes its starting energy.
+    /// A mode that stores none leaves 0 (a stage after a liquid one does not keep its
+    /// surface energy).
     pub(super) fn measure_stored_energy(&mut self) {
+        self.surface_energy = 0.0;
         if let Some(mut mode) = self.mode.take() {
             mode.measure_stored_energy(self);
             self.mode = Some(mode);
@@ -437,10 +440,10 @@ where
         // The stage clock times steps, not this set-up.
         let clock = self.clock.clone();
         self.update_stresses(0.0);
-        self.clock = clock;
         self.ledger = EnergyLedger::default();
         self.kinematics = measure(&self.particles, self.settings.gravity);
         self.measure_stored_energy();
+        self.clock = clock;
         self.energy0 = self.total_energy();
     }
 }
