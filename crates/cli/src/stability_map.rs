@@ -70,8 +70,8 @@ pub fn cases() -> Vec<MapCase> {
 pub struct Row {
     /// `transfer/scheme/kernel`, or `implicit/kernel`.
     pub label: String,
-    /// `pic`, `flip` (blend 0.99, the default), `apic`, or `mls` (APIC with the MLS-MPM
-    /// force); the implicit rows keep the default (APIC).
+    /// `pic`, `flip` (blend 0.99, the default), `apic`, `mls` (APIC with the MLS-MPM
+    /// force) or `xpic` (order 2, the default); the implicit rows keep the default (APIC).
     pub transfer: &'static str,
     /// `usf`, `usl` or `musl`; none for the implicit rows.
     pub scheme: Option<&'static str>,
@@ -87,7 +87,7 @@ const KERNELS: [&str; 4] = ["linear", "gimp", "bspline2", "bspline3"];
 /// refused), then implicit dynamics with each kernel.
 pub fn rows() -> Vec<Row> {
     let mut rows = Vec::new();
-    for transfer in ["pic", "flip", "apic", "mls"] {
+    for transfer in ["pic", "flip", "apic", "mls", "xpic"] {
         for scheme in ["usf", "usl", "musl"] {
             for kernel in KERNELS {
                 rows.push(Row {
@@ -477,7 +477,7 @@ mod tests {
     #[test]
     fn rows_cover_every_combination_and_filter_by_label() {
         let all = rows();
-        assert_eq!(all.len(), 4 * 3 * 4 + 4);
+        assert_eq!(all.len(), 5 * 3 * 4 + 4);
         let some = select_rows(Some("apic/usl/bspline2, implicit/bspline2")).unwrap();
         let labels: Vec<&str> = some.iter().map(|r| r.label.as_str()).collect();
         assert_eq!(labels, ["apic/usl/bspline2", "implicit/bspline2"]);
@@ -495,7 +495,7 @@ mod tests {
         );
         assert_eq!(select_rows(Some("pic")).unwrap().len(), 12);
         assert_eq!(select_rows(Some("implicit")).unwrap().len(), 4);
-        assert_eq!(select_rows(Some("usl/linear")).unwrap().len(), 4);
+        assert_eq!(select_rows(Some("usl/linear")).unwrap().len(), 5);
     }
 
     #[test]

@@ -74,6 +74,20 @@ fn invalid_scenes_are_rejected_with_json_paths() {
     s["solver"]["kernel"] = json!("linear");
     assert_rejected(s, "solver.mls");
 
+    // XPIC: an order out of range, and the modes it does not work with.
+    let mut s = bar_json();
+    s["solver"]["transfer"] = json!("xpic");
+    s["solver"]["xpic_order"] = json!(0);
+    assert_rejected(s, "solver.xpic_order");
+    let mut s = bar_json();
+    s["solver"]["transfer"] = json!("xpic");
+    s["solver"]["mechanics"] = json!({"implicit": {"form": "dynamic"}});
+    assert_rejected(s, "solver.transfer");
+    let contact = std::fs::read_to_string(example("two-disks-contact.json")).unwrap();
+    let mut s: serde_json::Value = serde_json::from_str(&contact).unwrap();
+    s["solver"]["transfer"] = json!("xpic");
+    assert_rejected(s, "solver.transfer");
+
     // A fixed time step far above the stable one is refused before anything runs.
     let mut s = bar_json();
     s["solver"]["dt"] = json!(0.1);

@@ -35,6 +35,11 @@ pub struct Grid<const D: usize> {
     pub force: PagedArray<Vector<D>>,
     /// Velocity before the momentum update, only for FLIP (empty otherwise).
     pub velocity_old: PagedArray<Vector<D>>,
+    /// XPIC's extrapolated velocity, then its correction to the PIC velocity (empty unless
+    /// `transfer: xpic`; [`Grid::enable_xpic`]).
+    pub xpic_velocity: PagedArray<Vector<D>>,
+    /// XPIC's scratch: one particle round trip S⁺S of `xpic_velocity` (empty unless XPIC).
+    pub xpic_round_trip: PagedArray<Vector<D>>,
     /// The blocks in use, for a sparse grid (`None`: dense).
     activity: Option<GridActivity>,
     /// Node ranges released at once, reused.
@@ -67,6 +72,8 @@ impl<const D: usize> Grid<D> {
             momentum: PagedArray::zeroed(count),
             force: PagedArray::zeroed(extra),
             velocity_old: PagedArray::zeroed(extra),
+            xpic_velocity: PagedArray::zeroed(0),
+            xpic_round_trip: PagedArray::zeroed(0),
             activity: None,
             clear_ranges: Vec::new(),
             cleared: true,
@@ -77,13 +84,26 @@ impl<const D: usize> Grid<D> {
     /// or dense. Either way every node reads zero until the next P2G.
     pub fn set_sparse(&mut self, sparse: bool) {
         let len = self.len();
-        for array in [&mut self.momentum, &mut self.force, &mut self.velocity_old] {
+        for array in [
+            &mut self.momentum,
+            &mut self.force,
+            &mut self.velocity_old,
+            &mut self.xpic_velocity,
+            &mut self.xpic_round_trip,
+        ] {
             let n = array.len();
             array.release(0..n);
         }
         self.mass.release(0..len);
         self.activity = sparse.then(|| GridActivity::new(len));
         self.cleared = true;
+    }
+
+    /// Allocates XPIC's two node arrays (pages are taken as they are written).
+    pub fn enable_xpic(&mut self) {
+        let len = self.len();
+        self.xpic_velocity = PagedArray::zeroed(len);
+        self.xpic_round_trip = PagedArray::zeroed(len);
     }
 
     /// Whether the grid is sparse.
@@ -241,6 +261,10 @@ impl<const D: usize> Grid<D> {
                 self.force.release(range.clone());
                 self.velocity_old.release(range.clone());
             }
+            if !self.xpic_velocity.is_empty() {
+                self.xpic_velocity.release(range.clone());
+                self.xpic_round_trip.release(range.clone());
+            }
         }
     }
 
@@ -259,7 +283,8 @@ impl<const D: usize> Grid<D> {
         let per_node = 8
             + (usize::from(!self.momentum.is_empty())
                 + usize::from(!self.force.is_empty())
-                + usize::from(!self.velocity_old.is_empty()))
+                + usize::from(!self.velocity_old.is_empty())
+                + 2 * usize::from(!self.xpic_velocity.is_empty()))
                 * std::mem::size_of::<Vector<D>>();
         match &self.activity {
             None => self.len() * per_node,

@@ -5,7 +5,7 @@
 //! (bonded interfaces that can delaminate) `solver/cohesive.rs`.
 
 use super::validator::Validator;
-use super::{Scene, Scheme, Shape};
+use super::{Scene, Scheme, Shape, Transfer};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -242,6 +242,13 @@ impl ContactSection {
             v.err(
                 "solver.mechanics",
                 "contact between bodies needs `dynamic` mechanics",
+            );
+        }
+        if s.solver.transfer == Transfer::Xpic {
+            v.err(
+                "solver.transfer",
+                "contact between bodies does not support `xpic` (each body's field would \
+                 need its own extrapolation): use `pic`, `flip` or `apic`",
             );
         }
     }

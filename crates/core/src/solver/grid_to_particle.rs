@@ -41,6 +41,8 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
     let inv_dx = grid.inv_dx;
     let apic = params.transfer == Transfer::Apic;
     let flip = params.transfer == Transfer::Flip;
+    // XPIC adds the gathered correction v* − vⁿ (`grid.xpic_velocity`) to the PIC velocity.
+    let xpic = params.transfer == Transfer::Xpic && params.velocity;
     let store_gradient = !particles.velocity_gradient.is_empty();
     let Particles {
         position,
@@ -89,7 +91,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 let mut b = Matrix::<D>::zeros();
                 let mut inertia = Matrix::<D>::zeros();
                 let mut grad = Matrix::<D>::zeros();
-                if !flip && (K::APIC_INERTIA.is_some() || !need_b) {
+                if !flip && !xpic && (K::APIC_INERTIA.is_some() || !need_b) {
                     // The tensor-product gather (constant APIC inertia, no FLIP change).
                     let g =
                         gather::<D, K>(&stencil, &grid.stride, &source.momentum, need_b, need_grad);
@@ -109,6 +111,9 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                         }
                         if flip && params.velocity {
                             v_flip_change += (vi - source.velocity_old[i]) * w;
+                        }
+                        if xpic {
+                            v_flip_change += source.xpic_velocity[i] * w;
                         }
                     });
                 }
@@ -135,6 +140,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                             let a = params.flip_blend;
                             *v = (*v + v_flip_change) * a + v_pic * (1.0 - a);
                         }
+                        Transfer::Xpic => *v = v_pic + v_flip_change,
                     }
                 }
                 if params.position {

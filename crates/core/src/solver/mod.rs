@@ -48,6 +48,7 @@ mod stress_derivative;
 mod stress_update;
 mod timestep;
 mod volume_averaging;
+mod xpic;
 
 use crate::kernels::{CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp};
 use crate::material::{BatchStats, Material, StressBatch, TangentBatch, ViscosityBatch};

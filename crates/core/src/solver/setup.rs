@@ -35,8 +35,12 @@ where
             cells[d] = domain_cells[d] + 2 * pad;
             min[d] -= pad as f64 * dx;
         }
-        let flip = s.solver.transfer == Transfer::Flip;
+        // FLIP and XPIC keep the forces apart from the momentum and the velocity before them.
+        let flip = matches!(s.solver.transfer, Transfer::Flip | Transfer::Xpic);
         let mut grid = Grid::new(min, cells, dx, flip);
+        if s.solver.transfer == Transfer::Xpic {
+            grid.enable_xpic();
+        }
 
         let reference = v.reference.as_ref().map(|r| r.start());
         let fbar = s.solver.anti_locking == crate::scene::AntiLocking::Fbar;
@@ -201,6 +205,7 @@ where
         let settings = Settings {
             transfer: s.solver.transfer,
             flip_blend: s.solver.flip_blend,
+            xpic_order: s.solver.xpic_order,
             mls: s.solver.mls,
             scheme: s.solver.scheme,
             cfl: s.solver.cfl,

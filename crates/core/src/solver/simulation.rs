@@ -41,6 +41,7 @@ pub(super) struct PhysicsSlot {
 pub(super) struct Settings<const D: usize> {
     pub(super) transfer: Transfer,
     pub(super) flip_blend: f64,
+    pub(super) xpic_order: u32,
     pub(super) mls: bool,
     pub(super) scheme: Scheme,
     pub(super) cfl: f64,
@@ -312,12 +313,18 @@ where
         K::APIC_INERTIA.unwrap_or(0.25)
     }
 
+    /// Whether P2G keeps the forces apart and the grid update the velocity before them:
+    /// FLIP's velocity change and XPIC's extrapolation need both.
+    fn forces_apart(&self) -> bool {
+        matches!(self.settings.transfer, Transfer::Flip | Transfer::Xpic)
+    }
+
     pub(super) fn p2g(&mut self, dt: f64, mass: bool, force: ForceTerm) {
         let params = P2gParams {
             dt,
             mass,
             force,
-            force_apart: self.settings.transfer == Transfer::Flip,
+            force_apart: self.forces_apart(),
             affine: self.settings.transfer == Transfer::Apic,
             inertia: self.inertia(),
             gravity: self.settings.gravity,
@@ -340,7 +347,7 @@ where
         let params = GridParams {
             dt,
             forces,
-            flip: forces && self.settings.transfer == Transfer::Flip,
+            flip: forces && self.forces_apart(),
             damping: self.settings.damping,
             time: self.relax_time.unwrap_or(self.time + dt),
         };
@@ -362,6 +369,19 @@ where
             gravity: self.settings.gravity,
         };
         let fields = self.contact.as_ref().map_or(&[][..], |c| &c.grids[..]);
+        if velocity && self.settings.transfer == Transfer::Xpic {
+            let start = Instant::now();
+            let order = self.settings.xpic_order;
+            super::xpic::extrapolate::<D, K>(
+                &mut self.grid,
+                &self.particles,
+                &self.bins,
+                &self.boundaries,
+                order,
+                self.relax_time.unwrap_or(self.time + dt),
+            );
+            self.clock.add(StepStage::G2p, start);
+        }
         let start = Instant::now();
         let stats = grid_to_particle::<D, K>(&self.grid, fields, &mut self.particles, params);
         self.clock.add(StepStage::G2p, start);
