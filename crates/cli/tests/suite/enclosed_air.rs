@@ -1,0 +1,259 @@
+//! Air the liquid encloses (`solver.mechanics.incompressible.enclosed_air`): a sealed
+//! pocket holds a level difference as Boyle's law and hydrostatics say it should, the same
+//! scene without it evens out, and the refusals.
+
+use crate::common;
+
+use common::{PIT_3D, invalid_example, load_example, run, run_fields};
+use mpm_core::output::Outcome;
+
+/// Particle spacing of examples/enclosed-air-u-tube.json (0.5 mm cells, 2 per cell).
+const SPACING: f64 = 0.25e-3;
+/// Width of each chamber and the baffle's lower edge, lid and the initial levels (m).
+const CHAMBER: f64 = 0.0095;
+const BAFFLE_BOTTOM: f64 = 0.002;
+const LID: f64 = 0.01;
+const LEFT0: f64 = 0.003;
+const RIGHT0: f64 = 0.007;
+
+/// Levels of the left and right chambers: the liquid area above the baffle's lower edge
+/// in each (particles × spacing²) over the chamber's width.
+fn levels(x: &[f64]) -> (f64, f64) {
+    let (mut left, mut right) = (0usize, 0usize);
+    for p in x.chunks(2) {
+        if p[1] > BAFFLE_BOTTOM {
+            if p[0] < CHAMBER {
+                left += 1;
+            } else if p[0] > 0.02 - CHAMBER {
+                right += 1;
+            }
+        }
+    }
+    let level = |n: usize| BAFFLE_BOTTOM + n as f64 * SPACING * SPACING / CHAMBER;
+    (level(left), level(right))
+}
+
+/// Left level at rest from Boyle's law and hydrostatics: the left rises by δ and the right
+/// falls by δ (equal chambers); the sealed air, at `ambient` over LID − LEFT0, is then at
+/// ambient·(LID − LEFT0)/(LID − LEFT0 − δ), which must equal ambient + ρg(RIGHT0 − LEFT0 − 2δ).
+fn boyle_left_level(ambient: f64) -> f64 {
+    let rho_g = 1000.0 * 9.81;
+    let mismatch = |d: f64| {
+        ambient * (LID - LEFT0) / (LID - LEFT0 - d) - ambient - rho_g * (RIGHT0 - LEFT0 - 2.0 * d)
+    };
+    // Bisection on δ in [0, (RIGHT0 − LEFT0)/2]: the mismatch rises with δ.
+    let (mut lo, mut hi) = (0.0, 0.5 * (RIGHT0 - LEFT0));
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if mismatch(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    LEFT0 + 0.5 * (lo + hi)
+}
+
+#[test]
+fn a_sealed_pocket_holds_the_level_difference_boyle_gives() {
+    // examples/enclosed-air-u-tube.json: ambient 200 Pa, so the sealed air gives way by
+    // about a tenth of its height. Reference: left level 3.759 mm, right 6.241 mm, level
+    // difference 2.482 mm (pocket gauge pressure 24.3 Pa). Measured at 0.6 s: left 3.750 mm,
+    // right 6.138 mm, difference 2.388 mm (−3.8%); with implicit viscosity (the incremental
+    // projection keeps the pocket's pressure in its nodes from step to step) 3.757, 6.125,
+    // 2.368 mm (−4.6%). Bounds: 5% on the difference, 0.1 mm on the left level, and Boyle
+    // at the measured left level against the hydrostatic head of the measured levels, 5%
+    // (measured 24.0 against 23.4 Pa). The right level is bound at 0.15 mm: the levels
+    // count particles above the baffle's edge, and the particles below it pack by about
+    // 0.11 mm of level (the two levels add up to 9.888 mm, not 10), which the reference
+    // leaves out. Before closed gaps were closed (they were free surface at gauge 0), the
+    // same sum and left 3.737, right 6.151 mm (implicit 3.717, 6.158 mm), under the 0.1 mm
+    // that bound both levels then. Without enclosed_air the levels meet (measured 4.91 and
+    // 4.72 mm: that run has no volume source, so its particles cluster and the levels sink;
+    // bound 0.5 mm).
+    let implicit = r#"solver.mechanics={"incompressible":{"viscosity":"implicit","enclosed_air":{"ambient_pressure":200}}}"#;
+    for overrides in [&[][..], &[implicit][..]] {
+        let (m, frames) = run_fields(&load_example("enclosed-air-u-tube.json", overrides), &["x"]);
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+        let last = frames.times.len() - 1;
+        let (left, right) = levels(&frames.values[0][last]);
+        let expected_left = boyle_left_level(200.0);
+        let expected_right = RIGHT0 - (expected_left - LEFT0);
+        eprintln!(
+            "{overrides:?}: levels {left} {right} against {expected_left} {expected_right}; pocket pressure (largest) {}",
+            m.physics["incompressible.air_pressure"]
+        );
+        let difference = right - left;
+        let expected = expected_right - expected_left;
+        assert!(
+            (difference / expected - 1.0).abs() < 0.05,
+            "level difference {difference} m against {expected} m"
+        );
+        assert!(
+            (left - expected_left).abs() < 1e-4,
+            "left {left} against {expected_left}"
+        );
+        assert!(
+            (right - expected_right).abs() < 1.5e-4,
+            "right {right} against {expected_right}"
+        );
+        let boyle = 200.0 * (LID - LEFT0) / (LID - left) - 200.0;
+        let head = 1000.0 * 9.81 * difference;
+        assert!(
+            (boyle / head - 1.0).abs() < 0.05,
+            "the pocket's gauge by Boyle {boyle} Pa against the head {head} Pa"
+        );
+        assert_eq!(m.physics["incompressible.air_pockets"], 1.0);
+    }
+
+    // The same tank with the air taken for free surface: the levels meet.
+    let (m, frames) = run_fields(
+        &load_example(
+            "enclosed-air-u-tube.json",
+            &[r#"solver.mechanics={"incompressible":{}}"#],
+        ),
+        &["x"],
+    );
+    assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+    let (left, right) = levels(&frames.values[0][frames.times.len() - 1]);
+    eprintln!("without enclosed air: levels {left} {right}");
+    assert!(
+        (right - left).abs() < 0.5e-3,
+        "levels {left} {right} do not meet"
+    );
+}
+
+#[test]
+fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
+    // examples/liquid-inflow-tank.json closed at 10 mm and walled all round: 4 mm of water
+    // (8e-5 m²) and 1.2e-4 m² of air at 101325 Pa; the inlet adds 4e-5 m² by 0.2 s, so the
+    // air ends in 8e-5 m² at 151,988 Pa absolute (Boyle): 50.7 kPa gauge. Before closed
+    // gaps were closed (they were free surface at gauge 0, sinks inside the pressurised
+    // liquid) this inverted a particle at 45 ms, and was refused.
+    // The air's pressure is Boyle's at the volume the solver leaves it, and the liquid
+    // takes less room than its particles' volume, as it does in the open tank (level −2.8%
+    // at cfl 0.5, −3.5% at 0.1; liquid_inflow.rs): the pressure at the water's surface
+    // implies a liquid volume of V_box − V_air·101325/p (measured −2.3% at cfl 0.5, 45.6
+    // kPa; −4.2% at cfl 0.1, 41.6 kPa); bound 5%. Boyle amplifies it: the gauge is 10% and
+    // 18% under 50.7 kPa.
+    for cfl in ["0.5", "0.1"] {
+        let scene = load_example(
+            "liquid-inflow-tank.json",
+            &[
+                "domain.max=[0.02,0.01]",
+                r#"domain.walls=[{"sides":["x-","x+","y-","y+"],"condition":"slip"}]"#,
+                "bodies[1].shape.inflow.end=0.2",
+                &format!("solver.cfl={cfl}"),
+                r#"solver.mechanics={"incompressible":{"enclosed_air":{}}}"#,
+                r#"output.fields=["x","injected","pressure"]"#,
+            ],
+        );
+        let (m, frames) = run_fields(&scene, &["x", "injected", "pressure"]);
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
+        assert_eq!(m.physics["incompressible.air_pockets"], 1.0);
+        let last = frames.times.len() - 1;
+        let (x, injected, pressure) = (
+            &frames.values[0][last],
+            &frames.values[1][last],
+            &frames.values[2][last],
+        );
+        // The water's surface: the highest entered particle; its pressure, the mean over
+        // the entered particles within half a millimetre of it.
+        let top = (0..injected.len())
+            .filter(|&p| injected[p] > 0.5)
+            .map(|p| x[2 * p + 1])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let near: Vec<f64> = (0..injected.len())
+            .filter(|&p| injected[p] > 0.5 && x[2 * p + 1] > top - 0.5e-3)
+            .map(|p| pressure[p])
+            .collect();
+        let gauge = near.iter().sum::<f64>() / near.len() as f64;
+        let liquid = 0.02 * 0.01 - 1.2e-4 * 101325.0 / (101325.0 + gauge);
+        eprintln!("cfl {cfl}: air at {gauge} Pa, so the liquid takes {liquid} m² of 1.2e-4");
+        assert!(
+            (liquid / 1.2e-4 - 1.0).abs() < 0.05,
+            "cfl {cfl}: air at {gauge} Pa leaves the liquid {liquid} m² of 1.2e-4"
+        );
+    }
+}
+
+/// The column `column` of void `id` in the run's `underfill_voids` table.
+fn void(m: &mpm_core::output::Metrics, id: usize, column: &str) -> f64 {
+    let table = &m.tables["underfill_voids"];
+    let k = table.columns.iter().position(|c| c == column).unwrap();
+    table.rows[id][k]
+}
+
+#[test]
+fn the_pits_air_stays_in_3d() {
+    // examples/liquid-void-pit.json made 3D (4 mm deep between slip walls, as in
+    // liquid_voids.rs): the slab closes the pit's 96 mm³ of air at 30 ms. With the air kept
+    // as a gas at 101325 Pa the pocket is still there at 80 ms (measured: 77 mm³ of wholly
+    // empty cells in the voids still open, the rest of its gas in cells particles spread
+    // into; largest gauge pressure 756 Pa); taken for free surface, the water fills it by
+    // 48 ms.
+    let pit = |mechanics: &str| {
+        let overrides: Vec<&str> = PIT_3D.into_iter().chain([mechanics]).collect();
+        run(&load_example("liquid-void-pit.json", &overrides))
+    };
+    let kept = pit(r#"solver.mechanics={"incompressible":{"enclosed_air":{}}}"#);
+    assert_eq!(
+        kept.outcome,
+        Some(Outcome::Finished),
+        "{:?}",
+        kept.diagnostic
+    );
+    assert!((void(&kept, 0, "closed_volume") - 96e-9).abs() < 1e-15);
+    assert!(void(&kept, 0, "filled_time").is_nan(), "the pit's air left");
+    // The pocket may split (measured: in two of 38 and 38.5 mm³ at 79.8 ms, since closed
+    // gaps are closed rather than left at gauge 0): what stays is the open voids' volume.
+    let rows = &kept.tables["underfill_voids"].rows;
+    let open: f64 = (0..rows.len())
+        .filter(|&id| void(&kept, id, "filled_time").is_nan())
+        .map(|id| void(&kept, id, "volume"))
+        .sum();
+    assert!(open > 60e-9, "{open} m³ of air left at 80 ms");
+    assert!(kept.physics["incompressible.air_pockets"] >= 1.0);
+    let free = pit(r#"solver.mechanics={"incompressible":{}}"#);
+    assert!((void(&free, 0, "closed_volume") - 96e-9).abs() < 1e-15);
+    assert!(
+        void(&free, 0, "filled_time") < 0.06,
+        "{}",
+        void(&free, 0, "filled_time")
+    );
+}
+
+#[test]
+fn enclosed_air_is_refused_where_it_cannot_work() {
+    let air = "solver.mechanics.incompressible.enclosed_air";
+    for (set, path) in [
+        (
+            format!("{air}.ambient_pressure=0"),
+            format!("{air}.ambient_pressure"),
+        ),
+        (format!("{air}.min_cells=0.5"), format!("{air}.min_cells")),
+    ] {
+        let issues = invalid_example("enclosed-air-u-tube.json", &[&set]);
+        assert!(issues.iter().any(|i| i.starts_with(&path)), "{issues:?}");
+    }
+    // An inlet into a box walled all round with implicit viscosity (measured: a particle
+    // inverted at 0.16 s; with explicit viscosity it runs, above).
+    let sealed = [
+        "domain.max=[0.02,0.01]",
+        r#"domain.walls=[{"sides":["x-","x+","y-","y+"],"condition":"slip"}]"#,
+        r#"solver.mechanics={"incompressible":{"enclosed_air":{},"viscosity":"implicit"}}"#,
+    ];
+    let issues = invalid_example("liquid-inflow-tank.json", &sealed);
+    assert!(
+        issues.iter().any(
+            |i| i.starts_with("solver.mechanics.incompressible.viscosity")
+                && i.contains("compress")
+        ),
+        "{issues:?}"
+    );
+    let issues = invalid_example(
+        "enclosed-air-u-tube.json",
+        &[&format!("{air}.pressure=1e5")],
+    );
+    assert!(issues.iter().any(|i| i.contains("pressure")), "{issues:?}");
+}
