@@ -115,6 +115,11 @@ pub enum Command {
         /// Draw only the particles of a 3D store whose third coordinate lies in LO:HI (m).
         #[arg(long, value_name = "LO:HI", allow_hyphen_values = true)]
         slab: Option<String>,
+        /// Draw each particle as its square at the first frame's spacing deformed by F (the
+        /// store must hold `F`): a body stretched to several times its length shows whole
+        /// where it is whole, and torn where it tore.
+        #[arg(long)]
+        deformed: bool,
     },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
@@ -395,6 +400,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             stage,
             plane,
             slab,
+            deformed,
         } => {
             let r = crate::render::render(&crate::render::RenderArgs {
                 store,
@@ -407,6 +413,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 stage,
                 plane,
                 slab,
+                deformed,
             })?;
             let voids = r
                 .voids

@@ -30,6 +30,7 @@ fn alias(key: &str, bodies: usize) -> Vec<String> {
         "cfl" => one("solver.cfl"),
         "mls" => one("solver.mls"),
         "dt" => one("solver.dt"),
+        "mechanics" => one("solver.mechanics"),
         "ppc" => (0..bodies)
             .map(|i| format!("bodies[{i}].particles_per_cell"))
             .collect(),

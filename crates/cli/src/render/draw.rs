@@ -19,6 +19,9 @@ pub(super) struct Picture<'a> {
     pub(super) range: (f64, f64),
     /// Particle spacing, m: the side of the drawn squares.
     pub(super) spacing: f64,
+    /// Each particle's deformation in the picture's axes (row-major 2×2): the square is
+    /// drawn as the parallelogram it maps to; `None`: upright squares.
+    pub(super) shapes: Option<&'a [[f64; 4]]>,
     /// `[xmin, xmax, ymin, ymax]`, m.
     pub(super) bounds: [f64; 4],
     /// Title above the plot.
@@ -111,7 +114,22 @@ pub(super) fn draw(path: &Path, p: &Picture) -> anyhow::Result<()> {
     let half = (0.5 * p.spacing * sx).max(0.5);
     let clamp_x = |v: f64| (v as i32).clamp(xr.start, xr.end - 1);
     let clamp_y = |v: f64| (v as i32).clamp(yr.start, yr.end - 1);
-    for (&(x, y), &v) in p.points.iter().zip(p.values) {
+    for (k, (&(x, y), &v)) in p.points.iter().zip(p.values).enumerate() {
+        if let Some(f) = p.shapes.and_then(|s| s.get(k)) {
+            // The square's corners mapped by F, in pixels (at least the one pixel an
+            // upright square gets).
+            let h = 0.5 * p.spacing;
+            let corners: Vec<(i32, i32)> = [(-h, -h), (h, -h), (h, h), (-h, h)]
+                .iter()
+                .map(|&(u, w)| {
+                    let (px, py) = to_px(x + f[0] * u + f[1] * w, y + f[2] * u + f[3] * w);
+                    (px.round() as i32, py.round() as i32)
+                })
+                .collect();
+            root.draw(&Polygon::new(corners, colour_of(v, p.range).filled()))
+                .map_err(err)?;
+            continue;
+        }
         let (cx, cy) = to_px(x, y);
         let left = clamp_x((cx - half).floor());
         let right = ((cx + half).ceil() as i32).clamp(left + 1, xr.end);

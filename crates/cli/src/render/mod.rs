@@ -48,6 +48,8 @@ pub(crate) struct RenderArgs {
     pub plane: Option<String>,
     /// `LO:HI`: keep the particles of a 3D store whose third coordinate lies there, m.
     pub slab: Option<String>,
+    /// Draw each particle's square at the first frame's spacing deformed by its F.
+    pub deformed: bool,
 }
 
 /// What was drawn.
@@ -191,7 +193,18 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         title = format!("{title}, {} {noun}", v.len());
     }
 
-    let spacing = spacing_of(&positions, dim, &drawn);
+    // With --deformed the squares are the particles' domains at the first frame, mapped by F.
+    let (spacing, shapes) = if args.deformed {
+        let (_, first) = store.frame("x", 0)?;
+        (
+            spacing_of(&first, dim, &drawn),
+            Some(deformed_shapes(
+                &store, &fields, k, dim, view.axes, &drawn, n,
+            )?),
+        )
+    } else {
+        (spacing_of(&positions, dim, &drawn), None)
+    };
     let bounds = picture_bounds(
         &points,
         domain(attributes, view.axes),
@@ -211,6 +224,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         values: &scalar,
         range,
         spacing,
+        shapes: shapes.as_deref(),
         bounds,
         title: &title,
         label: &label,
@@ -229,6 +243,43 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         range,
         voids: voids.map(|v| v.len()),
     })
+}
+
+/// The in-picture 2×2 block of F (row-major, the drawn axes) of every drawn particle, for
+/// `--deformed`; the store must hold `F`.
+fn deformed_shapes(
+    store: &ResultStore,
+    fields: &[String],
+    k: u64,
+    dim: usize,
+    axes: [usize; 2],
+    drawn: &[usize],
+    n: usize,
+) -> anyhow::Result<Vec<[f64; 4]>> {
+    if !fields.iter().any(|f| f == "F") {
+        return Err(input_error!(
+            "--deformed draws each particle deformed by F, which this store does not hold; \
+             add \"F\" to output.fields (available fields: {})",
+            fields.join(", ")
+        ));
+    }
+    let (_, f) = store.frame("F", k)?;
+    if f.len() != n * dim * dim {
+        bail!("field `F` does not hold {dim}×{dim} numbers for each of the {n} particles");
+    }
+    let [a, b] = axes;
+    Ok(drawn
+        .iter()
+        .map(|&p| {
+            let m = &f[p * dim * dim..(p + 1) * dim * dim];
+            [
+                m[a * dim + a],
+                m[a * dim + b],
+                m[b * dim + a],
+                m[b * dim + b],
+            ]
+        })
+        .collect())
 }
 
 /// The frame index of `frame` (negative counts from the end; `None` is the last) in a store

@@ -32,6 +32,7 @@ impl FrameRenderer for ServiceRenderer {
             stage: None,
             plane: None,
             slab: None,
+            deformed: false,
         };
         let drawn = render(&args);
         let bytes = std::fs::read(&out);

@@ -46,6 +46,7 @@ mod stress_averaging;
 mod surface_tension;
 mod thermal;
 mod thermal_contact;
+mod total_lagrangian;
 mod underfill;
 mod underfill_delamination;
 mod verification;

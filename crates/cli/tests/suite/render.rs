@@ -235,3 +235,50 @@ fn render_draws_a_3d_store_seen_along_an_axis_whole_or_a_slab() {
     assert!(text(&o).contains("LO:HI"), "{}", text(&o));
     assert!(!dir.path().join("bad.png").exists());
 }
+
+#[test]
+fn render_deformed_draws_a_stretched_body_whole() {
+    // The stretched bar in total Lagrangian MPM is whole at 2.8 times its length; drawn as
+    // upright squares of its particles' spacing it shows as slices, drawn deformed by F it
+    // fills its outline.
+    let dir = tempfile::tempdir().unwrap();
+    let store = run_example(dir.path(), "stretched-bar", &[]);
+    let coloured = |png: &str, extra: &[&str]| {
+        let mut args = vec!["render", &store, "--field", "J", "--out", png];
+        args.extend_from_slice(extra);
+        let o = mpm(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+        let (width, height, pixels) = decode_png(&dir.path().join(png));
+        // Viridis colours (not the white page or the black text) above the axis labels
+        // and the colour bar, the lowest 150 px.
+        let plot = (width * height.saturating_sub(150)) as usize;
+        pixels[..plot]
+            .iter()
+            .filter(|p| p[0] < 200 && (p[1] > 40 || p[2] > 40))
+            .count()
+    };
+    let upright = coloured("upright.png", &[]);
+    let deformed = coloured("deformed.png", &["--deformed"]);
+    // Measured: 4,000 and 10,883 pixels.
+    println!("coloured pixels: upright {upright}, deformed {deformed}");
+    assert!(
+        deformed as f64 > 2.0 * upright as f64,
+        "upright {upright}, deformed {deformed}"
+    );
+    // A store without F is refused, naming the field.
+    let bar = run_example(dir.path(), "vibrating-bar", &["solver.end_time=0.01"]);
+    let o = mpm(
+        &[
+            "render",
+            &bar,
+            "--field",
+            "v",
+            "--deformed",
+            "--out",
+            "b.png",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("\"F\""), "{}", text(&o));
+}

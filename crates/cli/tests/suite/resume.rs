@@ -266,6 +266,18 @@ fn a_creeping_solder_joint_and_its_fatigue_figures_resume_bit_for_bit() {
 }
 
 #[test]
+fn a_total_lagrangian_run_resumes_bit_for_bit() {
+    // The reference configuration and its F come from the checkpoint; the stencils are
+    // rebuilt from them.
+    resumed_equals_uninterrupted("stretched-bar.json", &[], 100);
+    resumed_equals_uninterrupted(
+        "stretched-bar.json",
+        &["solver.transfer=\"apic\"", "solver.scheme=\"usl\""],
+        100,
+    );
+}
+
+#[test]
 fn a_killed_run_resumes_bit_for_bit() {
     // The double cantilever beam: contact fields and cohesive interface nodes whose damage
     // grows. The run is killed as soon as its first checkpoint is on disk, while it goes on

@@ -6,21 +6,6 @@ use crate::common;
 
 use common::*;
 use serde_json::Value;
-use std::path::Path;
-
-/// The RGB pixels of a PNG picture, with its width and height.
-fn decode_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
-    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut reader = png::Decoder::new(file).read_info().expect("a PNG");
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader.next_frame(&mut buf).expect("a PNG frame");
-    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
-    let pixels = buf[..info.buffer_size()]
-        .chunks_exact(3)
-        .map(|p| [p[0], p[1], p[2]])
-        .collect();
-    (info.width, info.height, pixels)
-}
 
 /// The record of `row` at CFL factor `cfl`.
 fn cell<'a>(cells: &'a [Value], row: &str, cfl: f64) -> &'a Value {

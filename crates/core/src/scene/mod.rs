@@ -17,6 +17,7 @@ mod obstacle;
 mod output;
 mod solver_settings;
 mod stages;
+mod total_lagrangian;
 mod validate;
 mod validator;
 

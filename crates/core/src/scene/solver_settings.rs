@@ -139,7 +139,10 @@ impl Solver {
             && !contact
             && matches!(
                 self.mechanics,
-                Mechanics::Dynamic | Mechanics::QuasiStatic { .. } | Mechanics::Off
+                Mechanics::Dynamic
+                    | Mechanics::QuasiStatic { .. }
+                    | Mechanics::Off
+                    | Mechanics::TotalLagrangian
             )
     }
 }
@@ -182,6 +185,12 @@ pub enum Mechanics {
     /// viscosity, the viscous limit, not by a sound speed. Every material of the
     /// scene must be a liquid (e.g. type `liquid`).
     Incompressible(IncompressibleSettings),
+    /// Total Lagrangian MPM: explicit dynamics on a grid that stays the reference
+    /// configuration, each particle's stencil fixed from the start, so nothing crosses a
+    /// cell and a body stretched to several times its length stays whole. Walls hold the
+    /// material that started at them; no obstacles, contact or physics sections.
+    #[serde(alias = "tlmpm")]
+    TotalLagrangian,
 }
 
 /// Settings of `solver.mechanics.incompressible`; every field has a default.
@@ -451,6 +460,13 @@ impl Mechanics {
     /// Whether mechanics is explicit dynamics (the default).
     pub fn is_dynamic(&self) -> bool {
         *self == Mechanics::Dynamic
+    }
+
+    /// Whether the mode integrates the equations of motion explicitly with nothing but
+    /// the bodies' own forces (explicit or total Lagrangian dynamics): energy and momentum
+    /// are conserved where nothing acts from outside.
+    pub fn is_explicit_dynamics(&self) -> bool {
+        matches!(self, Mechanics::Dynamic | Mechanics::TotalLagrangian)
     }
 }
 

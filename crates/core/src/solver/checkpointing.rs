@@ -240,6 +240,10 @@ where
         if c.state("mechanics_off").as_bool() == Some(true) {
             self.update_stresses(0.0);
         }
+        if let Some(mut mode) = self.mode.take() {
+            mode.take_over(self, c);
+            self.mode = Some(mode);
+        }
         self.ledger = crate::energy_ledger::EnergyLedger::default();
         self.kinematics = super::grid_to_particle::measure(&self.particles, self.settings.gravity);
         self.measure_stored_energy();

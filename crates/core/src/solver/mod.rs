@@ -47,6 +47,7 @@ pub mod stencil;
 mod stress_derivative;
 mod stress_update;
 mod timestep;
+mod total_lagrangian;
 mod volume_averaging;
 mod xpic;
 

@@ -10,6 +10,7 @@ use super::incompressible::Incompressible;
 use super::mechanics_off::MechanicsOff;
 use super::quasi_static::QuasiStatic;
 use super::simulation::Simulation;
+use super::total_lagrangian::TotalLagrangian;
 use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::kernels::Kernel;
 use crate::material::Material;
@@ -29,6 +30,10 @@ pub(crate) trait StepMode<const D: usize, K: Kernel>: Send {
     /// the current positions, before a run or a stage takes its starting energy; nothing
     /// by default.
     fn measure_stored_energy(&mut self, _sim: &mut Simulation<D, K>) {}
+    /// At the start of a stage, takes over what the stage before's mode saved at its end
+    /// (`c`) when it was the same mode and the state still fits; nothing by default (a
+    /// stage's mode starts afresh).
+    fn take_over(&mut self, _sim: &Simulation<D, K>, _c: &Checkpoint) {}
     /// Takes back what [`StepMode::save`] wrote.
     fn restore(&mut self, _checkpoint: &Checkpoint) -> Result<(), CheckpointError> {
         Ok(())
@@ -45,6 +50,7 @@ where
 {
     match mechanics {
         Mechanics::Dynamic => Box::new(Explicit),
+        Mechanics::TotalLagrangian => Box::new(TotalLagrangian::<D>::default()),
         Mechanics::Off => Box::new(MechanicsOff),
         Mechanics::QuasiStatic {
             max_iterations,

@@ -19,7 +19,7 @@ use crate::output::{
     Diagnostic, FRAME_DIAGNOSTICS, Frame, Metrics, Outcome, OutputError, OutputSink, RunInfo,
 };
 use crate::reference::Frame as ReferenceFrame;
-use crate::scene::{Mechanics, Transfer};
+use crate::scene::Transfer;
 use std::time::Instant;
 
 impl<const D: usize, K: Kernel> Simulation<D, K>
@@ -77,10 +77,14 @@ where
             ));
         }
         if let Some(f) = self.kinematics.escaped {
-            return Some(make(
-                f,
-                "a particle left the grid (add walls or enlarge the domain)",
-            ));
+            let message = if f.field == "wall" {
+                "a particle passed through a wall: in total Lagrangian mechanics a wall holds \
+                 only the material that starts at it, and a body moving onto one goes through \
+                 (use `dynamic` mechanics)"
+            } else {
+                "a particle left the grid (add walls or enlarge the domain)"
+            };
+            return Some(make(f, message));
         }
         if let Some(limit) = self.settings.max_speed
             && self.kinematics.max_speed > limit
@@ -94,7 +98,9 @@ where
                 message: format!("the largest particle speed exceeds stop.max_speed = {limit}"),
             });
         }
-        if self.settings.mechanics.is_dynamic() && energy_growth > self.settings.max_energy_growth {
+        if self.settings.mechanics.is_explicit_dynamics()
+            && energy_growth > self.settings.max_energy_growth
+        {
             return Some(Diagnostic {
                 step: self.steps,
                 time: self.time,
@@ -494,7 +500,7 @@ where
                 self.settings.gravity.norm() > 0.0
                     || !self.boundaries.is_empty()
                     || self.settings.damping > 0.0
-                    || self.settings.mechanics != Mechanics::Dynamic,
+                    || !self.settings.mechanics.is_explicit_dynamics(),
                 // APIC's affine part is counted with a B-spline's constant inertia; with
                 // GIMP or linear shape functions it is not stored, so not measured.
                 self.settings.transfer != Transfer::Apic || affine_inertia.is_some(),

@@ -315,7 +315,7 @@ where
 
     /// Whether P2G keeps the forces apart and the grid update the velocity before them:
     /// FLIP's velocity change and XPIC's extrapolation need both.
-    fn forces_apart(&self) -> bool {
+    pub(super) fn forces_apart(&self) -> bool {
         matches!(self.settings.transfer, Transfer::Flip | Transfer::Xpic)
     }
 

@@ -282,3 +282,17 @@ pub const PIT_3D: [&str; 8] = [
     r#"obstacles[0].shape={"box":{"min":[0,0,0],"max":[0.008,0.006,0.004]}}"#,
     r#"obstacles[1].shape={"box":{"min":[0.012,0,0],"max":[0.02,0.006,0.004]}}"#,
 ];
+
+/// The RGB pixels of a PNG picture, with its width and height.
+pub fn decode_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(file).read_info().expect("a PNG");
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).expect("a PNG frame");
+    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
+    let pixels = buf[..info.buffer_size()]
+        .chunks_exact(3)
+        .map(|p| [p[0], p[1], p[2]])
+        .collect();
+    (info.width, info.height, pixels)
+}
