@@ -79,24 +79,29 @@ pub struct Row {
     pub kernel: &'static str,
     /// Implicit Newmark dynamics (`solver.mechanics: {"implicit": {"form": "dynamic"}}`).
     pub implicit: bool,
+    /// Total Lagrangian MPM (`solver.mechanics: "total_lagrangian"`), labelled `tlmpm/...`.
+    pub total_lagrangian: bool,
 }
 
 const KERNELS: [&str; 4] = ["linear", "gimp", "bspline2", "bspline3"];
 
 /// Every row: each transfer × scheme × kernel (the validator refuses some: they show as
-/// refused), then implicit dynamics with each kernel.
+/// refused), then implicit dynamics with each kernel, then total Lagrangian MPM with each
+/// transfer × scheme × kernel it takes.
 pub fn rows() -> Vec<Row> {
     let mut rows = Vec::new();
+    let explicit = |prefix: &str, transfer, scheme, kernel, total_lagrangian| Row {
+        label: format!("{prefix}{transfer}/{scheme}/{kernel}"),
+        transfer,
+        scheme: Some(scheme),
+        kernel,
+        implicit: false,
+        total_lagrangian,
+    };
     for transfer in ["pic", "flip", "apic", "mls", "xpic"] {
         for scheme in ["usf", "usl", "musl"] {
             for kernel in KERNELS {
-                rows.push(Row {
-                    label: format!("{transfer}/{scheme}/{kernel}"),
-                    transfer,
-                    scheme: Some(scheme),
-                    kernel,
-                    implicit: false,
-                });
+                rows.push(explicit("", transfer, scheme, kernel, false));
             }
         }
     }
@@ -107,16 +112,29 @@ pub fn rows() -> Vec<Row> {
             scheme: None,
             kernel,
             implicit: true,
+            total_lagrangian: false,
         });
+    }
+    for transfer in ["pic", "flip", "apic"] {
+        for scheme in ["usl", "musl"] {
+            for kernel in KERNELS {
+                rows.push(explicit("tlmpm/", transfer, scheme, kernel, true));
+            }
+        }
     }
     rows
 }
 
 /// Whether `pattern` (e.g. `apic`, `usl/bspline2`, `apic/usl/bspline2`) names consecutive
 /// `/`-separated parts of `label`: `pic` matches the PIC rows, not the APIC ones.
+/// The total Lagrangian rows answer only patterns that name `tlmpm`, so `pic` or
+/// `usl/bspline2` pick the same rows as before they were added.
 fn matches(label: &str, pattern: &str) -> bool {
     let parts: Vec<&str> = label.split('/').collect();
     let wanted: Vec<&str> = pattern.split('/').collect();
+    if parts[0] == "tlmpm" && !wanted.contains(&"tlmpm") {
+        return false;
+    }
     wanted.len() <= parts.len() && parts.windows(wanted.len()).any(|w| w == wanted.as_slice())
 }
 
@@ -170,6 +188,9 @@ impl Row {
         if self.implicit {
             solver["mechanics"] = json!({"implicit": {"form": "dynamic"}});
             return;
+        }
+        if self.total_lagrangian {
+            solver["mechanics"] = json!("total_lagrangian");
         }
         if self.transfer == "mls" {
             solver["transfer"] = json!("apic");
@@ -477,7 +498,7 @@ mod tests {
     #[test]
     fn rows_cover_every_combination_and_filter_by_label() {
         let all = rows();
-        assert_eq!(all.len(), 5 * 3 * 4 + 4);
+        assert_eq!(all.len(), 5 * 3 * 4 + 4 + 3 * 2 * 4);
         let some = select_rows(Some("apic/usl/bspline2, implicit/bspline2")).unwrap();
         let labels: Vec<&str> = some.iter().map(|r| r.label.as_str()).collect();
         assert_eq!(labels, ["apic/usl/bspline2", "implicit/bspline2"]);
@@ -496,6 +517,13 @@ mod tests {
         assert_eq!(select_rows(Some("pic")).unwrap().len(), 12);
         assert_eq!(select_rows(Some("implicit")).unwrap().len(), 4);
         assert_eq!(select_rows(Some("usl/linear")).unwrap().len(), 5);
+        // The total Lagrangian rows answer patterns that name them.
+        assert_eq!(select_rows(Some("tlmpm")).unwrap().len(), 24);
+        assert_eq!(select_rows(Some("tlmpm/pic")).unwrap().len(), 8);
+        assert_eq!(
+            select_rows(Some("tlmpm/apic/usl/bspline2")).unwrap().len(),
+            1
+        );
     }
 
     #[test]
