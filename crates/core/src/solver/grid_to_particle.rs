@@ -159,35 +159,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                     }
                 }
                 // Statistics and checks.
-                let m = mass[p];
-                let speed2 = v.norm_squared();
-                stats.kinetic_energy += 0.5 * m * speed2;
-                stats.momentum += *v * m;
-                stats.gravity_energy -= m * params.gravity.dot(x);
-                stats.max_speed = stats.max_speed.max(speed2);
-                let det = determinant(f);
-                if det < stats.min_det_f {
-                    stats.min_det_f = det;
-                    stats.min_det_particle = p;
-                }
-                if stats.non_finite.is_none() {
-                    let bad = if !speed2.is_finite() {
-                        Some(("v", speed2))
-                    } else if !x.iter().all(|c| c.is_finite()) {
-                        Some(("x", x.norm()))
-                    } else if !det.is_finite() {
-                        Some(("F", det))
-                    } else {
-                        None
-                    };
-                    if let Some((field, value)) = bad {
-                        stats.non_finite = Some(ParticleFault {
-                            particle: p,
-                            field,
-                            value,
-                        });
-                    }
-                }
+                stats.record(p, mass[p], v, x, f, &params.gravity);
                 if params.position
                     && stats.escaped.is_none()
                     && !stencil_fits::<D, K>(grid, x, half)

@@ -385,6 +385,12 @@ where
         let start = Instant::now();
         let stats = grid_to_particle::<D, K>(&self.grid, fields, &mut self.particles, params);
         self.clock.add(StepStage::G2p, start);
+        self.take_kinematics(stats, velocity);
+    }
+
+    /// Keeps a G2P pass's statistics: all of them after a pass that updated velocities,
+    /// else the F and position checks only.
+    pub(super) fn take_kinematics(&mut self, stats: KinematicStats<D>, velocity: bool) {
         if velocity {
             self.kinematics = stats;
         } else {

@@ -72,3 +72,47 @@ impl<const D: usize> KinematicStats<D> {
         }
     }
 }
+
+impl<const D: usize> KinematicStats<D> {
+    /// Adds particle `p` (mass `m`, velocity `v`, position `x`, deformation gradient `f`)
+    /// to the sums and checks under `gravity`: kinetic energy, momentum, gravity's
+    /// potential, the largest speed squared (G2P takes the root once per chunk), the
+    /// smallest det F and the first non-finite field.
+    #[inline(always)]
+    pub fn record(
+        &mut self,
+        p: usize,
+        m: f64,
+        v: &crate::math::Vector<D>,
+        x: &crate::math::Vector<D>,
+        f: &crate::math::Matrix<D>,
+        gravity: &crate::math::Vector<D>,
+    ) {
+        let speed2 = v.norm_squared();
+        self.kinetic_energy += 0.5 * m * speed2;
+        self.momentum += *v * m;
+        self.gravity_energy -= m * gravity.dot(x);
+        self.max_speed = self.max_speed.max(speed2);
+        let det = crate::math::determinant(f);
+        if det < self.min_det_f {
+            self.min_det_f = det;
+            self.min_det_particle = p;
+        }
+        if self.non_finite.is_none() {
+            let bad = if !speed2.is_finite() {
+                Some(("v", speed2))
+            } else if !x.iter().all(|c| c.is_finite()) {
+                Some(("x", x.norm()))
+            } else if !det.is_finite() {
+                Some(("F", det))
+            } else {
+                None
+            };
+            self.non_finite = bad.map(|(field, value)| ParticleFault {
+                particle: p,
+                field,
+                value,
+            });
+        }
+    }
+}

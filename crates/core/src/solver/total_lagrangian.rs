@@ -390,17 +390,7 @@ impl<const D: usize> TotalLagrangian<D> {
                         }
                         *f += rate * dt;
                     }
-                    let m = mass[k];
-                    let speed2 = v.norm_squared();
-                    stats.kinetic_energy += 0.5 * m * speed2;
-                    stats.momentum += *v * m;
-                    stats.gravity_energy -= m * gravity.dot(x);
-                    stats.max_speed = stats.max_speed.max(speed2);
-                    let det = determinant(f);
-                    if det < stats.min_det_f {
-                        stats.min_det_f = det;
-                        stats.min_det_particle = k;
-                    }
+                    stats.record(k, mass[k], v, x, f, &gravity);
                     if velocity && stats.escaped.is_none() {
                         let through = walls.iter().any(|&(axis, upper, beyond)| {
                             if upper {
@@ -422,22 +412,6 @@ impl<const D: usize> TotalLagrangian<D> {
                             });
                         }
                     }
-                    if stats.non_finite.is_none() {
-                        let bad = if !speed2.is_finite() {
-                            Some(("v", speed2))
-                        } else if !x.iter().all(|c| c.is_finite()) {
-                            Some(("x", x.norm()))
-                        } else if !det.is_finite() {
-                            Some(("F", det))
-                        } else {
-                            None
-                        };
-                        stats.non_finite = bad.map(|(field, value)| ParticleFault {
-                            particle: k,
-                            field,
-                            value,
-                        });
-                    }
                 }
                 stats.max_speed = stats.max_speed.sqrt();
                 stats
@@ -445,14 +419,7 @@ impl<const D: usize> TotalLagrangian<D> {
             KinematicStats::merge,
         );
         sim.clock.add(StepStage::G2p, start);
-        if velocity {
-            sim.kinematics = stats;
-        } else {
-            sim.kinematics.min_det_f = stats.min_det_f;
-            sim.kinematics.min_det_particle = stats.min_det_particle;
-            sim.kinematics.non_finite =
-                ParticleFault::first(sim.kinematics.non_finite, stats.non_finite);
-        }
+        sim.take_kinematics(stats, velocity);
     }
 }
 
