@@ -13,6 +13,7 @@ mod common;
 mod conservation;
 mod contact;
 mod contact_conductance;
+mod cpdi;
 mod cure_probe;
 mod enclosed_air;
 mod energy_ledger;

@@ -278,6 +278,21 @@ fn a_total_lagrangian_run_resumes_bit_for_bit() {
 }
 
 #[test]
+fn a_cpdi_run_resumes_bit_for_bit() {
+    // CPDI keeps nothing between steps but the particles: its stencils come from their
+    // positions, F and half widths every step.
+    let cpdi = ["solver.mechanics=\"dynamic\"", "solver.kernel=\"cpdi2\""];
+    resumed_equals_uninterrupted("stretched-bar.json", &cpdi, 100);
+    let apic = [
+        cpdi[0],
+        cpdi[1],
+        "solver.transfer=\"apic\"",
+        "solver.scheme=\"usl\"",
+    ];
+    resumed_equals_uninterrupted("stretched-bar.json", &apic, 100);
+}
+
+#[test]
 fn a_killed_run_resumes_bit_for_bit() {
     // The double cantilever beam: contact fields and cohesive interface nodes whose damage
     // grows. The run is killed as soon as its first checkpoint is on disk, while it goes on

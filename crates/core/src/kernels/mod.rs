@@ -3,11 +3,13 @@
 //! A kernel is a zero-sized type so every transfer loop is monomorphised for it. Weights are
 //! separable: the weight of a node is the product of one 1D weight per axis.
 
+pub mod cpdi;
 mod cubic;
 mod gimp;
 mod linear;
 mod quadratic;
 
+pub use cpdi::Cpdi;
 pub use cubic::CubicBSpline;
 pub use gimp::UniformGimp;
 pub use linear::Linear;
@@ -45,8 +47,11 @@ pub trait Kernel: Copy + Send + Sync + 'static {
     /// `Some(c)` when the APIC inertia tensor is the constant `c·dx²·I` (B-splines); `None`
     /// when it must be computed per particle (linear, GIMP).
     const APIC_INERTIA: Option<f64>;
-    /// Whether the weights depend on the particle's half size (GIMP).
+    /// Whether the weights depend on the particle's half size (GIMP, CPDI).
     const USES_PARTICLE_SIZE: bool = false;
+    /// Whether the mechanics step interpolates through deformed particle domains (CPDI):
+    /// then the step is `solver::cpdi`'s, and these point weights serve the rest.
+    const DOMAINS: bool = false;
 
     /// Weights along one axis for a particle at grid coordinate `xi`; `half_size` is the
     /// particle's half width in cells (only GIMP uses it).
@@ -64,6 +69,8 @@ pub enum KernelKind {
     QuadraticBSpline,
     /// Cubic B-spline.
     CubicBSpline,
+    /// Convected particle domains.
+    Cpdi,
 }
 
 #[cfg(test)]

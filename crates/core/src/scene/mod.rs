@@ -10,6 +10,7 @@ mod body;
 mod body_particles;
 mod budget;
 mod contact;
+mod cpdi;
 mod domain;
 mod inflow;
 mod lattice;

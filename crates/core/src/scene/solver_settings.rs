@@ -17,6 +17,12 @@ pub enum KernelName {
     Bspline2,
     /// Cubic B-spline.
     Bspline3,
+    /// Convected particle domains (CPDI; Sadeghirad et al. 2011, 2013): each particle's
+    /// domain deforms with its F and its weights are the linear kernel averaged over it,
+    /// so a body stretched to several times its length stays whole. Explicit dynamic
+    /// mechanics, PIC/FLIP/APIC, USL/MUSL.
+    #[serde(alias = "cpdi")]
+    Cpdi2,
 }
 
 /// How particle velocities come back from the grid.

@@ -222,6 +222,7 @@ impl Validator {
         s.domain.validate(self);
         s.solver.validate(self);
         self.check_total_lagrangian(s);
+        self.check_cpdi(s);
         if let super::Mechanics::Incompressible(settings) = &s.solver.mechanics {
             let mut walled: Vec<super::Side> = s
                 .domain

@@ -84,7 +84,7 @@ pub(crate) fn build_compact_interpolation<const D: usize, K: Kernel>(
 /// node marks the reached nodes, one bit per 64 of those words says which words hold any,
 /// so a build costs the entries plus 1/4096 of the box, and clearing costs the last rows.
 /// Buffers are reused: no allocation once grown.
-fn number_rows<const D: usize>(grid_nodes: usize, out: &mut Interpolation<D>) {
+pub(super) fn number_rows<const D: usize>(grid_nodes: usize, out: &mut Interpolation<D>) {
     let words = grid_nodes.div_ceil(64);
     if out.marks.len() != words {
         out.marks.clear();

@@ -19,8 +19,11 @@ mod cohesive;
 mod conservation;
 mod contact;
 mod contact_step;
+mod cpdi;
+mod cpdi_stencils;
 mod explicit;
 mod failure_watch;
+mod gather_transfer;
 mod generalized_plane_strain;
 mod grid_to_particle;
 pub mod grid_update;
@@ -51,7 +54,7 @@ mod total_lagrangian;
 mod volume_averaging;
 mod xpic;
 
-use crate::kernels::{CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp};
+use crate::kernels::{Cpdi, CubicBSpline, Kernel, Linear, QuadraticBSpline, UniformGimp};
 use crate::material::{BatchStats, Material, StressBatch, TangentBatch, ViscosityBatch};
 use crate::output::{Metrics, OutputError, OutputSink};
 use crate::physics::{Physics, PhysicsContext, Stage};
@@ -193,10 +196,12 @@ pub fn dispatch<V: SimulationVisitor>(scene: &ValidatedScene, visitor: V) -> V::
         (2, KernelName::Gimp) => visitor.visit(Simulation::<2, UniformGimp>::new(scene)),
         (2, KernelName::Bspline2) => visitor.visit(Simulation::<2, QuadraticBSpline>::new(scene)),
         (2, KernelName::Bspline3) => visitor.visit(Simulation::<2, CubicBSpline>::new(scene)),
+        (2, KernelName::Cpdi2) => visitor.visit(Simulation::<2, Cpdi>::new(scene)),
         (_, KernelName::Linear) => visitor.visit(Simulation::<3, Linear>::new(scene)),
         (_, KernelName::Gimp) => visitor.visit(Simulation::<3, UniformGimp>::new(scene)),
         (_, KernelName::Bspline2) => visitor.visit(Simulation::<3, QuadraticBSpline>::new(scene)),
         (_, KernelName::Bspline3) => visitor.visit(Simulation::<3, CubicBSpline>::new(scene)),
+        (_, KernelName::Cpdi2) => visitor.visit(Simulation::<3, Cpdi>::new(scene)),
     }
 }
 

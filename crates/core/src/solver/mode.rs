@@ -4,6 +4,7 @@
 //! in [`for_scene`].
 
 use super::DimensionDispatch;
+use super::cpdi::Cpdi;
 use super::explicit::Explicit;
 use super::implicit::Implicit;
 use super::incompressible::Incompressible;
@@ -49,6 +50,7 @@ where
     dyn Material: DimensionDispatch<D>,
 {
     match mechanics {
+        Mechanics::Dynamic if K::DOMAINS => Box::new(Cpdi::<D>::default()),
         Mechanics::Dynamic => Box::new(Explicit),
         Mechanics::TotalLagrangian => Box::new(TotalLagrangian::<D>::default()),
         Mechanics::Off => Box::new(MechanicsOff),

@@ -296,3 +296,42 @@ pub fn decode_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
         .collect();
     (info.width, info.height, pixels)
 }
+
+/// The largest ratio, over neighbouring particles of the reference lattice (spacing `h`
+/// along x and y), of their distance in the last frame to the distance their mean F maps
+/// their reference offset to: about 1 where the body is whole, far above it across a gap
+/// that opened between particles whose F did not stretch (numerical fracture).
+pub fn largest_separation(store: &Path, h: f64) -> f64 {
+    let s = mpm_io::ResultStore::open(store).unwrap();
+    let last = s.times().unwrap().len() as u64 - 1;
+    let (_, x0) = s.frame("x", 0).unwrap();
+    let (_, x) = s.frame("x", last).unwrap();
+    let (_, f) = s.frame("F", last).unwrap();
+    let key = |p: usize| {
+        (
+            (x0[2 * p] / h).round() as i64,
+            (x0[2 * p + 1] / h).round() as i64,
+        )
+    };
+    let n = x0.len() / 2;
+    let at: std::collections::HashMap<(i64, i64), usize> = (0..n).map(|p| (key(p), p)).collect();
+    let mut largest = 0.0f64;
+    for p in 0..n {
+        let (i, j) = key(p);
+        for q in [at.get(&(i + 1, j)), at.get(&(i, j + 1))]
+            .into_iter()
+            .flatten()
+        {
+            let q = *q;
+            let d0 = [x0[2 * q] - x0[2 * p], x0[2 * q + 1] - x0[2 * p + 1]];
+            let fm: Vec<f64> = (0..4)
+                .map(|k| 0.5 * (f[4 * p + k] + f[4 * q + k]))
+                .collect();
+            let mapped = [fm[0] * d0[0] + fm[1] * d0[1], fm[2] * d0[0] + fm[3] * d0[1]];
+            let d = [x[2 * q] - x[2 * p], x[2 * q + 1] - x[2 * p + 1]];
+            let ratio = d[0].hypot(d[1]) / mapped[0].hypot(mapped[1]);
+            largest = largest.max(ratio);
+        }
+    }
+    largest
+}
