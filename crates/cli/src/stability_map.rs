@@ -75,7 +75,7 @@ pub struct Row {
     pub transfer: &'static str,
     /// `usf`, `usl` or `musl`; none for the implicit rows.
     pub scheme: Option<&'static str>,
-    /// `linear`, `gimp`, `bspline2` or `bspline3`.
+    /// `linear`, `gimp`, `bspline2`, `bspline3` or `cpdi2`.
     pub kernel: &'static str,
     /// Implicit Newmark dynamics (`solver.mechanics: {"implicit": {"form": "dynamic"}}`).
     pub implicit: bool,
@@ -87,7 +87,7 @@ const KERNELS: [&str; 4] = ["linear", "gimp", "bspline2", "bspline3"];
 
 /// Every row: each transfer × scheme × kernel (the validator refuses some: they show as
 /// refused), then implicit dynamics with each kernel, then total Lagrangian MPM with each
-/// transfer × scheme × kernel it takes.
+/// transfer × scheme × kernel it takes, then CPDI with each transfer × scheme it takes.
 pub fn rows() -> Vec<Row> {
     let mut rows = Vec::new();
     let explicit = |prefix: &str, transfer, scheme, kernel, total_lagrangian| Row {
@@ -122,18 +122,25 @@ pub fn rows() -> Vec<Row> {
             }
         }
     }
+    for transfer in ["pic", "flip", "apic"] {
+        for scheme in ["usl", "musl"] {
+            rows.push(explicit("", transfer, scheme, "cpdi2", false));
+        }
+    }
     rows
 }
 
 /// Whether `pattern` (e.g. `apic`, `usl/bspline2`, `apic/usl/bspline2`) names consecutive
 /// `/`-separated parts of `label`: `pic` matches the PIC rows, not the APIC ones.
-/// The total Lagrangian rows answer only patterns that name `tlmpm`, so `pic` or
-/// `usl/bspline2` pick the same rows as before they were added.
+/// The total Lagrangian and CPDI rows answer only patterns that name `tlmpm` or `cpdi2`,
+/// so `pic` or `usl/bspline2` pick the same rows as before they were added.
 fn matches(label: &str, pattern: &str) -> bool {
     let parts: Vec<&str> = label.split('/').collect();
     let wanted: Vec<&str> = pattern.split('/').collect();
-    if parts[0] == "tlmpm" && !wanted.contains(&"tlmpm") {
-        return false;
+    for variant in ["tlmpm", "cpdi2"] {
+        if parts.contains(&variant) && !wanted.contains(&variant) {
+            return false;
+        }
     }
     wanted.len() <= parts.len() && parts.windows(wanted.len()).any(|w| w == wanted.as_slice())
 }
@@ -498,7 +505,7 @@ mod tests {
     #[test]
     fn rows_cover_every_combination_and_filter_by_label() {
         let all = rows();
-        assert_eq!(all.len(), 5 * 3 * 4 + 4 + 3 * 2 * 4);
+        assert_eq!(all.len(), 5 * 3 * 4 + 4 + 3 * 2 * 4 + 3 * 2);
         let some = select_rows(Some("apic/usl/bspline2, implicit/bspline2")).unwrap();
         let labels: Vec<&str> = some.iter().map(|r| r.label.as_str()).collect();
         assert_eq!(labels, ["apic/usl/bspline2", "implicit/bspline2"]);
@@ -524,6 +531,10 @@ mod tests {
             select_rows(Some("tlmpm/apic/usl/bspline2")).unwrap().len(),
             1
         );
+        // So do the CPDI rows.
+        assert_eq!(select_rows(Some("cpdi2")).unwrap().len(), 6);
+        assert_eq!(select_rows(Some("apic/usl/cpdi2")).unwrap().len(), 1);
+        assert_eq!(select_rows(Some("musl/cpdi2")).unwrap().len(), 3);
     }
 
     #[test]

@@ -375,7 +375,7 @@ mod tests {
             s
         };
         let mut variants: Vec<(String, Value, Check)> = Vec::new();
-        for kernel in ["linear", "gimp", "bspline2", "bspline3"] {
+        for kernel in ["linear", "gimp", "bspline2", "bspline3", "cpdi2"] {
             for stretch in [0.5, 0.75, 1.0, 1.5, 2.0] {
                 for ppc in [2, 3, 4] {
                     let s = tension(kernel, stretch, ppc);
