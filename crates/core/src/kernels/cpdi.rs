@@ -70,44 +70,39 @@ pub fn domain_weights<const D: usize>(
     weight[..nodes].fill(0.0);
     gradient[..nodes].fill(Vector::<D>::zeros());
     let corners = 1usize << D;
+    let scale = 1.0 / corners as f64;
+    // Each corner's share of the gradient, J⁻ᵀ s 2^−D (zero for a collapsed domain).
+    let inverse_transpose = inverse(half)
+        .map(|m| m.transpose() * scale)
+        .unwrap_or_else(Matrix::<D>::zeros);
     for a in 0..corners {
         let mut sign = Vector::<D>::zeros();
         for d in 0..D {
             sign[d] = if a >> d & 1 == 1 { 1.0 } else { -1.0 };
         }
         let corner = centre + half * sign;
+        let share = inverse_transpose * sign;
         // The corner's linear stencil: 2 nodes per used axis, offsets into the box.
         let mut base = [0usize; 3];
-        let mut tent = [[0.0f64; 2]; 3];
-        for d in 0..3 {
-            if d < D {
-                let lo = super::fast_floor(corner[d]);
-                let t = corner[d] - lo;
-                base[d] = (lo as isize - low[d]) as usize;
-                tent[d] = [1.0 - t, t];
-            } else {
-                tent[d] = [1.0, 0.0];
-            }
+        let mut tent = [[1.0f64, 0.0]; 3];
+        for d in 0..D {
+            let lo = super::fast_floor(corner[d]);
+            let t = corner[d] - lo;
+            base[d] = (lo as isize - low[d]) as usize;
+            tent[d] = [1.0 - t, t];
         }
         let span = |d: usize| if d < D { 2 } else { 1 };
         for i in 0..span(0) {
             for j in 0..span(1) {
+                let e0 = ((base[0] + i) * count[1] + base[1] + j) * count[2] + base[2];
+                let wij = tent[0][i] * tent[1][j];
                 for k in 0..span(2) {
-                    let n = tent[0][i] * tent[1][j] * tent[2][k];
-                    let e = ((base[0] + i) * count[1] + base[1] + j) * count[2] + base[2] + k;
-                    weight[e] += n;
-                    gradient[e] += sign * n;
+                    let n = wij * tent[2][k];
+                    weight[e0 + k] += n * scale;
+                    gradient[e0 + k] += share * n;
                 }
             }
         }
-    }
-    let scale = 1.0 / corners as f64;
-    let inverse_transpose = inverse(half)
-        .map(|m| m.transpose() * scale)
-        .unwrap_or_else(Matrix::<D>::zeros);
-    for e in 0..nodes {
-        weight[e] *= scale;
-        gradient[e] = inverse_transpose * gradient[e];
     }
 }
 
