@@ -54,6 +54,8 @@ pub struct Particles<const D: usize> {
     pub half_size: Vec<f64>,
     /// Position at time 0 (empty unless a reference needs it).
     pub initial_position: Vec<Vector<D>>,
+    /// Each particle's share of the scene's dead loads, N (empty without `loads`).
+    pub external_force: Vec<Vector<D>>,
     /// Index of the particle in the output order (particles are reordered for locality;
     /// output is always written in the original order).
     pub id: Vec<u32>,
@@ -88,7 +90,11 @@ impl<const D: usize> Particles<D> {
             .flat_map(|g| g.state.iter())
             .map(|s| s.capacity() * 8)
             .sum();
-        (self.position.capacity() + self.velocity.capacity() + self.initial_position.capacity()) * v
+        (self.position.capacity()
+            + self.velocity.capacity()
+            + self.initial_position.capacity()
+            + self.external_force.capacity())
+            * v
             + (self.mass.capacity()
                 + self.volume0.capacity()
                 + self.half_size.capacity()

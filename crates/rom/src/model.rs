@@ -353,6 +353,18 @@ impl Model {
                 ),
             ));
         }
+        if !s.loads.is_empty() {
+            return Err(mismatch(
+                "loads",
+                "a reduced run carries gravity and obstacles, not loads: remove them".into(),
+            ));
+        }
+        if s.solver.kernel == mpm_core::scene::KernelName::Cpdi2 {
+            return Err(mismatch(
+                "solver.kernel",
+                "a reduced run interpolates at particle centres, not through CPDI's domains".into(),
+            ));
+        }
         let h = self.info.training.cell_size;
         if (s.domain.cell_size - h).abs() > 1e-9 * h {
             return Err(mismatch(

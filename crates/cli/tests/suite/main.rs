@@ -26,6 +26,7 @@ mod layered_stack;
 mod liquid;
 mod liquid_inflow;
 mod liquid_voids;
+mod loads;
 mod phase_change;
 mod process_chain;
 mod process_fill_chain;

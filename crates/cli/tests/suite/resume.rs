@@ -293,6 +293,16 @@ fn a_cpdi_run_resumes_bit_for_bit() {
 }
 
 #[test]
+fn a_loaded_run_resumes_bit_for_bit() {
+    // The tip load's share per particle comes back from the checkpoint with the particles'
+    // order; the peak reference's state too.
+    let short = ["solver.end_time=0.4"];
+    resumed_equals_uninterrupted("cantilever-tip-load.json", &short, 60);
+    let updated = [short[0], "solver.mechanics=\"dynamic\""];
+    resumed_equals_uninterrupted("cantilever-tip-load.json", &updated, 60);
+}
+
+#[test]
 fn a_killed_run_resumes_bit_for_bit() {
     // The double cantilever beam: contact fields and cohesive interface nodes whose damage
     // grows. The run is killed as soon as its first checkpoint is on disk, while it goes on

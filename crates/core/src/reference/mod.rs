@@ -11,6 +11,7 @@ mod bimaterial_strip;
 mod cantilever_elastica;
 mod kirsch_plate;
 mod layered_strip;
+mod peak_displacement;
 mod poiseuille_startup;
 mod vibrating_bar;
 
@@ -196,6 +197,7 @@ pub fn core_references() -> Vec<Box<dyn ReferenceFactory>> {
         layered_strip::factory(),
         kirsch_plate::factory(),
         poiseuille_startup::factory(),
+        peak_displacement::factory(),
     ]
 }
 
@@ -291,6 +293,7 @@ pub fn test_particles<const D: usize>(
         velocity_gradient: Vec::new(),
         half_size: Vec::new(),
         initial_position: Vec::new(),
+        external_force: Vec::new(),
         id: (0..n as u32).collect(),
         contact_field: Vec::new(),
         groups: Vec::new(),

@@ -14,6 +14,7 @@ mod cpdi;
 mod domain;
 mod inflow;
 mod lattice;
+mod loads;
 mod obstacle;
 mod output;
 mod solver_settings;
@@ -28,6 +29,7 @@ pub use budget::{Estimate, Limits, estimate};
 pub use contact::{CohesiveLaw, ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};
 pub use domain::{Contact, Domain, Side, Wall};
 pub use inflow::{INJECTED, Inflow, InflowLayout};
+pub use loads::{Load, in_box};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, FatigueLayer, Output, StopCriteria};
 pub use solver_settings::{
@@ -73,6 +75,10 @@ pub struct Scene {
     /// and a law (frictionless, Coulomb friction, no-slip) where their fields meet.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact: Option<ContactSection>,
+    /// Dead loads: a total force on the particles that start inside a box, split over them
+    /// by volume (a tip load, a traction over a face).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub loads: Vec<Load>,
     /// Physics beyond mechanics by name (`thermal`, `phase_change`, ...), each provided by a
     /// plugin; run in the order the plugins require (see `mpm plugins`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]

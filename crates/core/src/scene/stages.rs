@@ -19,7 +19,7 @@ pub struct StageSpec {
     pub name: String,
     /// Changes to the scene of the stage before (the base scene for the first): a JSON
     /// merge patch. It must set `solver.end_time` later than the stage before ends, and may
-    /// not change `name`, `dimension`, `domain`, `materials`, `bodies` or `contact`.
+    /// not change `name`, `dimension`, `domain`, `materials`, `bodies`, `contact` or `loads`.
     #[serde(default)]
     pub changes: serde_json::Value,
     /// Particles the stage removes as it takes over from the stage before (the gap's
@@ -51,6 +51,7 @@ pub const FIXED_ACROSS_STAGES: &[&str] = &[
     "materials",
     "bodies",
     "contact",
+    "loads",
     "stages",
 ];
 

@@ -148,6 +148,7 @@ pub fn parse_scene_value_limited(
         );
     }
     v.particles_outside_obstacles(&scene, &bodies);
+    v.check_loads(&scene, &bodies);
     if !v.issues.is_empty() {
         return Err(SceneError { issues: v.issues });
     }

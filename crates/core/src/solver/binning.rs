@@ -165,6 +165,9 @@ impl Reorder {
             if !p.initial_position.is_empty() {
                 gather(&mut p.initial_position[r.clone()], perm, visited);
             }
+            if !p.external_force.is_empty() {
+                gather(&mut p.external_force[r.clone()], perm, visited);
+            }
             if !p.contact_field.is_empty() {
                 gather(&mut p.contact_field[r.clone()], perm, visited);
             }

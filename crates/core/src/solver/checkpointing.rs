@@ -75,6 +75,7 @@ where
         c.put("particles.velocity_gradient", flatten(&p.velocity_gradient));
         c.put("particles.half_size", p.half_size.clone());
         c.put("particles.initial_position", flatten(&p.initial_position));
+        c.put("particles.external_force", flatten(&p.external_force));
         c.put("particles.id", p.id.iter().map(|&i| i as f64).collect());
         c.put(
             "particles.contact_field",
@@ -356,6 +357,17 @@ where
             D,
             by_vector,
             strict,
+        )?;
+        // Checkpoints from before loads existed have no such array: a scene without
+        // loads needs none.
+        let loaded = !p.external_force.is_empty();
+        restore_vec(
+            c,
+            "particles.external_force",
+            &mut p.external_force,
+            D,
+            by_vector,
+            strict && loaded,
         )?;
         let ids = c.get("particles.id", n)?;
         let mut seen = vec![false; n];

@@ -121,6 +121,7 @@ impl<const D: usize> GatherStencils<D> {
         let s = &self.stencil;
         let stencil_len = s.stencil;
         let particles = &sim.particles;
+        let loads = (!particles.external_force.is_empty()).then_some(&particles.external_force);
         let anchor = match frame {
             Frame::Reference { position, .. } => position,
             Frame::Domains => &particles.position[..],
@@ -140,6 +141,7 @@ impl<const D: usize> GatherStencils<D> {
                     let i = s.rows[r] as usize;
                     let (mut m, mut momentum, mut force) =
                         (0.0, Vector::<D>::zeros(), Vector::<D>::zeros());
+                    let mut load = Vector::<D>::zeros();
                     let entries = &self.row_entries
                         [self.row_start[r] as usize..self.row_start[r + 1] as usize];
                     for &e in entries {
@@ -154,12 +156,18 @@ impl<const D: usize> GatherStencils<D> {
                         momentum += v * (w * mp);
                         if forces {
                             force -= self.force_matrix[p] * s.gradient[e];
+                            if let Some(loads) = loads {
+                                load += loads[p] * w;
+                            }
                         }
                     }
                     // SAFETY: every row is one grid node, and each row is in one chunk.
                     unsafe {
                         if forces {
                             force += gravity * m;
+                            if loads.is_some() {
+                                force += load;
+                            }
                             *mass_out.get(i) = m;
                             if apart {
                                 *momentum_out.get(i) = momentum;
@@ -207,6 +215,7 @@ impl<const D: usize> GatherStencils<D> {
         let affine = SharedSlice::new(&mut p.affine);
         let gradient_out = SharedSlice::new(&mut p.velocity_gradient);
         let (mass, half_size) = (&p.mass, &p.half_size);
+        let loads = (!p.external_force.is_empty()).then_some(&p.external_force);
         let stats = ordered_reduce(
             chunk_count(n),
             KinematicStats::<D>::default,
@@ -268,7 +277,7 @@ impl<const D: usize> GatherStencils<D> {
                         }
                         *f += rate * dt;
                     }
-                    stats.record(k, mass[k], v, x, f, &gravity);
+                    stats.record(k, mass[k], v, x, f, (&gravity, loads.map(|l| &l[k])));
                     if moves && stats.escaped.is_none() {
                         stats.escaped = escape::<D, K>(frame, grid, k, x, f, half_size);
                     }

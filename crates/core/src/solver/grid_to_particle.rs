@@ -53,9 +53,11 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
         velocity_gradient,
         half_size,
         contact_field,
+        external_force,
         ..
     } = particles;
     let (mass, half_size, contact_field) = (&*mass, &*half_size, &*contact_field);
+    let loads = (!external_force.is_empty()).then_some(&*external_force);
     let position = SharedSlice::new(position);
     let velocity = SharedSlice::new(velocity);
     let deformation = SharedSlice::new(deformation_gradient);
@@ -159,7 +161,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                     }
                 }
                 // Statistics and checks.
-                stats.record(p, mass[p], v, x, f, &params.gravity);
+                stats.record(p, mass[p], v, x, f, (&params.gravity, loads.map(|l| &l[p])));
                 if params.position
                     && stats.escaped.is_none()
                     && !stencil_fits::<D, K>(grid, x, half)
@@ -193,6 +195,9 @@ pub(crate) fn measure<const D: usize>(
         stats.kinetic_energy += 0.5 * m * v.norm_squared();
         stats.momentum += v * m;
         stats.gravity_energy -= m * gravity.dot(&x);
+        if let Some(load) = particles.external_force.get(p) {
+            stats.gravity_energy -= load.dot(&x);
+        }
         stats.max_speed = stats.max_speed.max(v.norm());
         let det = determinant(&particles.deformation_gradient[p]);
         if det < stats.min_det_f {

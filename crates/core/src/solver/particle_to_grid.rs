@@ -101,6 +101,7 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
     let force_out = SharedSlice::new(&mut grid.force);
     let grid = &*grid;
     let sparse = grid.is_sparse();
+    let loads = (!particles.external_force.is_empty()).then_some(&particles.external_force);
     for colour in 0..2 {
         (0..bins.slab_count())
             .into_par_iter()
@@ -127,6 +128,13 @@ pub(crate) fn particle_to_grid<const D: usize, K: Kernel>(
                             weight = params.gravity * m;
                         } else {
                             mv += params.gravity * (m * params.dt);
+                        }
+                        if let Some(loads) = loads {
+                            if params.force_apart {
+                                weight += loads[p];
+                            } else {
+                                mv += loads[p] * params.dt;
+                            }
                         }
                     }
                     // Affine momentum per cell of offset: Q·(x_i - x_p) with offsets in cells.

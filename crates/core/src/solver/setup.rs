@@ -67,6 +67,7 @@ where
                     .as_ref()
                     .is_some_and(|r| r.needs_initial_positions()),
             )),
+            external_force: Vec::with_capacity(alloc_if(!s.loads.is_empty())),
             id: Vec::with_capacity(n),
             contact_field: Vec::with_capacity(alloc_if(s.contact.is_some())),
             groups: Vec::new(),
@@ -107,6 +108,19 @@ where
             output_index[b.body] = next;
             next += b.volumes.len();
         }
+        // Each load's picked volume, to split its force by volume.
+        let load_volume: Vec<f64> = s
+            .loads
+            .iter()
+            .map(|load| {
+                v.bodies
+                    .iter()
+                    .flat_map(|b| b.positions.chunks_exact(D).zip(&b.volumes))
+                    .filter(|(x, _)| crate::scene::in_box(load, x))
+                    .map(|(_, volume)| volume)
+                    .sum()
+            })
+            .collect();
         for body in order {
             let name = &s.bodies[body.body].material;
             let material = v.materials[name].clone();
@@ -145,6 +159,17 @@ where
                 }
                 if particles.initial_position.capacity() > 0 {
                     particles.initial_position.push(x);
+                }
+                if !s.loads.is_empty() {
+                    let at = &body.positions[p * D..(p + 1) * D];
+                    let mut force = Vector::<D>::zeros();
+                    for (load, total) in s.loads.iter().zip(&load_volume) {
+                        if crate::scene::in_box(load, at) {
+                            force +=
+                                vector_from_slice::<D>(&load.force) * (body.volumes[p] / total);
+                        }
+                    }
+                    particles.external_force.push(force);
                 }
             }
             if let Some((fields, _, _)) = &contact {

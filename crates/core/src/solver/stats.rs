@@ -75,9 +75,10 @@ impl<const D: usize> KinematicStats<D> {
 
 impl<const D: usize> KinematicStats<D> {
     /// Adds particle `p` (mass `m`, velocity `v`, position `x`, deformation gradient `f`)
-    /// to the sums and checks under `gravity`: kinetic energy, momentum, gravity's
-    /// potential, the largest speed squared (G2P takes the root once per chunk), the
-    /// smallest det F and the first non-finite field.
+    /// to the sums and checks under `pull` (gravity, and the particle's dead-load share if
+    /// the scene has loads): kinetic energy, momentum, the potential of gravity and loads,
+    /// the largest speed squared (G2P takes the root once per chunk), the smallest det F
+    /// and the first non-finite field.
     #[inline(always)]
     pub fn record(
         &mut self,
@@ -86,12 +87,17 @@ impl<const D: usize> KinematicStats<D> {
         v: &crate::math::Vector<D>,
         x: &crate::math::Vector<D>,
         f: &crate::math::Matrix<D>,
-        gravity: &crate::math::Vector<D>,
+        pull: (&crate::math::Vector<D>, Option<&crate::math::Vector<D>>),
     ) {
+        let (gravity, load) = pull;
         let speed2 = v.norm_squared();
         self.kinetic_energy += 0.5 * m * speed2;
         self.momentum += *v * m;
         self.gravity_energy -= m * gravity.dot(x);
+        // A dead load's potential, −f·x, counts with gravity's.
+        if let Some(load) = load {
+            self.gravity_energy -= load.dot(x);
+        }
         self.max_speed = self.max_speed.max(speed2);
         let det = crate::math::determinant(f);
         if det < self.min_det_f {
