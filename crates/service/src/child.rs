@@ -218,7 +218,9 @@ pub(crate) async fn run_in_child(
                             }
                         }
                         Ok(Report::Metrics(m)) => end = Some(ChildEnd::Metrics(m)),
-                        Ok(Report::Refused(m)) => end = Some(ChildEnd::Refused(m)),
+                        Ok(Report::Refused(m)) => {
+                            end = Some(ChildEnd::Refused(name_the_limit(m, command.memory_bytes)))
+                        }
                         Err(_) => {}
                     },
                     Ok(None) | Err(_) => break,
@@ -241,6 +243,21 @@ pub(crate) async fn run_in_child(
         (Some(end), Ok(s)) if matches!(s.code(), Some(0..=3)) => end,
         (_, Ok(s)) => ChildEnd::Crashed(describe_exit(s, command.memory_bytes, &stderr)),
         (_, Err(e)) => ChildEnd::Crashed(format!("waiting for the job's process failed: {e}")),
+    }
+}
+
+/// A refusal for want of memory (a fallible allocation that failed, such as a body's
+/// particles at validation) names the job's memory limit when it had one: under a limit the
+/// same scene fails in validation or in the run, depending on what fills the address space.
+fn name_the_limit(message: String, memory: Option<u64>) -> String {
+    match memory {
+        Some(m) if message.contains("memory allocation failed") => {
+            format!(
+                "{message} (the job's process memory limit is {} MB)",
+                m / 1_000_000
+            )
+        }
+        _ => message,
     }
 }
 
@@ -322,4 +339,20 @@ pub fn default_job_memory() -> Option<u64> {
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::name_the_limit;
+
+    #[test]
+    fn a_refusal_for_want_of_memory_names_the_limit() {
+        let m = "bodies[0].shape: cannot hold 1.061e6 particles: memory allocation failed";
+        assert!(name_the_limit(m.into(), Some(100_000_000)).ends_with("memory limit is 100 MB)"));
+        assert_eq!(name_the_limit(m.into(), None), m);
+        assert_eq!(
+            name_the_limit("solver.cfl: bad".into(), Some(1)),
+            "solver.cfl: bad"
+        );
+    }
 }

@@ -246,7 +246,10 @@ fn the_service_refuses_the_three_scenes_and_keeps_running_jobs() {
 fn a_job_whose_process_runs_out_of_memory_fails_alone() {
     let data = tempfile::tempdir().unwrap();
     // Each job's process gets 100 MB of address space; the cube drop at half its cell size
-    // (a million particles, about 300 MB) needs more, which the server's limits allow.
+    // (a million particles, about 300 MB) needs more, which the server's limits allow. It
+    // fails in validation (the body's particles, a fallible allocation: a refusal) or in
+    // the run (an abort), depending on what else fills the address space (the binary, the
+    // threads' arenas); either way the job's failure names the limit.
     let server = Server::start(data.path(), &["--job-memory-mb", "100"]);
     let url = &server.url;
     let mut big = example_json("cube-drop.json");
