@@ -335,11 +335,12 @@ mod tests {
                 "cantilever_elastica",
                 "kirsch_plate",
                 "layered_strip",
+                "peak_displacement",
                 "poiseuille_startup",
                 "vibrating_bar"
             ]
         );
-        assert_eq!(registry.references_of(CORE).len(), 6);
+        assert_eq!(registry.references_of(CORE).len(), 7);
         let catalogue = registry.catalogue();
         assert!(catalogue["core"]["references"]["vibrating_bar"]["properties"]["axis"].is_object());
         match registry.register(Box::new(Clash)) {
