@@ -2,6 +2,7 @@
 //! reference that compares the measured liquid front and fill time with it.
 
 use mpm_core::output::Comparison;
+use mpm_core::particles::Particles;
 use mpm_core::reference::{
     Frame, Reference, ReferenceFactory, ReferenceLaw, RelativeL2, TypedReferenceFactory, compare,
 };
@@ -69,8 +70,6 @@ impl ReferenceLaw for CapillaryFilling {
     }
 
     fn observe<const D: usize>(&mut self, frame: Frame<'_, D>) {
-        let particles = frame.particles;
-        let fill = particles.shared.get("fill");
         let CapillaryFillingParams {
             length,
             gap,
@@ -79,33 +78,19 @@ impl ReferenceLaw for CapillaryFilling {
             viscosity,
             ..
         } = self.p;
-        let materials = &self.p.materials;
-        let (mut liquid, mut total) = (0.0, 0.0);
-        let (axis, entrance) = (self.p.axis, self.p.entrance);
-        let mut add = |k: usize| match fill {
-            Some(fill) => {
-                liquid += fill[k] * particles.volume0[k];
-                total += particles.volume0[k];
-            }
-            None if particles.position[k][axis] > entrance => liquid += particles.volume0[k],
-            None => {}
+        let gauge = FrontGauge {
+            axis: self.p.axis,
+            entrance: self.p.entrance,
+            length,
+            gap,
+            depth: self.depth,
+            materials: &self.p.materials,
         };
-        if materials.is_empty() {
-            (0..particles.len()).for_each(&mut add);
-        } else {
-            for group in &particles.groups {
-                if materials.contains(&group.name) {
-                    group.range.clone().for_each(&mut add);
-                }
-            }
-        }
-        let front = if fill.is_some() {
-            length * liquid / total.max(1e-300)
-        } else {
-            (liquid / (gap * self.depth)).min(length)
-        };
+        let front = gauge.front(frame.particles);
         let t_fill = capillary_fill_time(length, gap, surface_tension, contact_angle, viscosity);
-        self.observe_front(frame.time, front, length, t_fill);
+        if let Some(c) = observe_front(&mut self.fronts, frame.time, front, length, t_fill) {
+            self.comparisons.push(c);
+        }
         if frame.time <= 0.0 {
             return;
         }
@@ -139,46 +124,93 @@ impl ReferenceLaw for CapillaryFilling {
     }
 }
 
-impl CapillaryFilling {
-    /// Records one frame's capillary front and, the first time it reaches the end of the gap,
-    /// the comparison `fill_time`.
-    ///
-    /// Under the law x² grows linearly in time, and the measured front stops at the end of
-    /// the gap, so the frame that reached the end says only that the gap filled before it.
-    /// The fill time is where the chord of x² through the last two frames before it reaches
-    /// `length²` (kept between those frames), or with a single frame before it, where the
-    /// chord from that frame to the full one does.
-    fn observe_front(&mut self, time: f64, front: f64, length: f64, reference: f64) {
-        let full = length * (1.0 - 1e-6);
-        if self.fronts.last().is_some_and(|&(_, x)| x >= full) {
-            return;
-        }
-        self.fronts.push((time, front));
-        if front < full {
-            return;
-        }
-        let k = self.fronts.len() - 1;
-        if k == 0 {
-            // Full at the first frame observed: when it filled is unknown.
-            return;
-        }
-        let target = length * length;
-        let (t_b, _) = self.fronts[k];
-        let (t_a, x_a) = self.fronts[k - 1];
-        let chord = |(t0, x0): (f64, f64), (t1, x1): (f64, f64)| {
-            let slope = (x1 * x1 - x0 * x0) / (t1 - t0);
-            (slope > 0.0 && slope.is_finite()).then(|| t1 + (target - x1 * x1) / slope)
+/// Where the liquid front of a filling gap is: the gap's axis and entrance, its length,
+/// height and extent along the other axes, and the materials that fill it.
+pub(crate) struct FrontGauge<'a> {
+    pub(crate) axis: usize,
+    pub(crate) entrance: f64,
+    pub(crate) length: f64,
+    pub(crate) gap: f64,
+    /// The gap's extent along the axes other than `axis` and across (1 in 2D), m.
+    pub(crate) depth: f64,
+    /// Materials whose particles make up the gap (empty: every particle).
+    pub(crate) materials: &'a [String],
+}
+
+impl FrontGauge<'_> {
+    /// The front: `length × (liquid volume / gap volume)` from the shared particle field
+    /// `fill` (the gap-averaged mode), or for liquid particles the volume of those past the
+    /// entrance over the gap's cross-section, at most `length`.
+    pub(crate) fn front<const D: usize>(&self, particles: &Particles<D>) -> f64 {
+        let fill = particles.shared.get("fill");
+        let (mut liquid, mut total) = (0.0, 0.0);
+        let (axis, entrance) = (self.axis, self.entrance);
+        let mut add = |k: usize| match fill {
+            Some(fill) => {
+                liquid += fill[k] * particles.volume0[k];
+                total += particles.volume0[k];
+            }
+            None if particles.position[k][axis] > entrance => liquid += particles.volume0[k],
+            None => {}
         };
-        let before = (k >= 2)
-            .then(|| chord(self.fronts[k - 2], (t_a, x_a)))
-            .flatten()
-            .map(|t| t.max(t_a).min(t_b));
-        let Some(measured) = before.or_else(|| chord((t_a, x_a), self.fronts[k])) else {
-            return;
-        };
-        self.comparisons
-            .push(compare("fill_time", measured, reference));
+        if self.materials.is_empty() {
+            (0..particles.len()).for_each(&mut add);
+        } else {
+            for group in &particles.groups {
+                if self.materials.contains(&group.name) {
+                    group.range.clone().for_each(&mut add);
+                }
+            }
+        }
+        if fill.is_some() {
+            self.length * liquid / total.max(1e-300)
+        } else {
+            (liquid / (self.gap * self.depth)).min(self.length)
+        }
     }
+}
+
+/// Records one frame's front in `fronts` and, the first time it reaches the end of the
+/// gap, returns the comparison `fill_time` against `reference`.
+///
+/// Under the fill laws x² grows linearly in time, and the measured front stops at the end
+/// of the gap, so the frame that reached the end says only that the gap filled before it.
+/// The fill time is where the chord of x² through the last two frames before it reaches
+/// `length²` (kept between those frames), or with a single frame before it, where the
+/// chord from that frame to the full one does.
+pub(crate) fn observe_front(
+    fronts: &mut Vec<(f64, f64)>,
+    time: f64,
+    front: f64,
+    length: f64,
+    reference: f64,
+) -> Option<Comparison> {
+    let full = length * (1.0 - 1e-6);
+    if fronts.last().is_some_and(|&(_, x)| x >= full) {
+        return None;
+    }
+    fronts.push((time, front));
+    if front < full {
+        return None;
+    }
+    let k = fronts.len() - 1;
+    if k == 0 {
+        // Full at the first frame observed: when it filled is unknown.
+        return None;
+    }
+    let target = length * length;
+    let (t_b, _) = fronts[k];
+    let (t_a, x_a) = fronts[k - 1];
+    let chord = |(t0, x0): (f64, f64), (t1, x1): (f64, f64)| {
+        let slope = (x1 * x1 - x0 * x0) / (t1 - t0);
+        (slope > 0.0 && slope.is_finite()).then(|| t1 + (target - x1 * x1) / slope)
+    };
+    let before = (k >= 2)
+        .then(|| chord(fronts[k - 2], (t_a, x_a)))
+        .flatten()
+        .map(|t| t.max(t_a).min(t_b));
+    let measured = before.or_else(|| chord((t_a, x_a), fronts[k]))?;
+    Some(compare("fill_time", measured, reference))
 }
 
 /// The problems of a `capillary_filling` section in a `dimension`-D scene.
@@ -222,11 +254,7 @@ fn build(
     scene: &Scene,
 ) -> Result<Arc<dyn Reference>, Vec<Issue>> {
     check(&p, path, scene)?;
-    let across = p.across.unwrap_or(if p.axis == 0 { 1 } else { 0 });
-    let depth = (0..scene.dimension as usize)
-        .filter(|&d| d != p.axis && d != across)
-        .map(|d| scene.domain.max[d] - scene.domain.min[d])
-        .product();
+    let depth = gap_depth(scene, p.axis, p.across);
     Ok(Arc::new(CapillaryFilling {
         p,
         depth,
@@ -236,6 +264,16 @@ fn build(
         fronts: Vec::new(),
         comparisons: Vec::new(),
     }))
+}
+
+/// The extent of a gap along `axis` with its plates normal to `across` (default: the first
+/// axis other than `axis`) along the scene's other axes: 1 in 2D, the domain's depth in 3D.
+pub(crate) fn gap_depth(scene: &Scene, axis: usize, across: Option<usize>) -> f64 {
+    let across = across.unwrap_or(if axis == 0 { 1 } else { 0 });
+    (0..scene.dimension as usize)
+        .filter(|&d| d != axis && d != across)
+        .map(|d| scene.domain.max[d] - scene.domain.min[d])
+        .product()
 }
 
 fn unit_depth() -> f64 {

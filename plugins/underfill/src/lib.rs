@@ -38,6 +38,7 @@ mod liquid_references;
 mod meniscus_reference;
 mod parameters;
 mod particle_voids;
+mod pressure_filling;
 mod underfill;
 mod viscosity;
 mod voids;
@@ -50,6 +51,7 @@ pub use parameters::{
     UnderfillParameters, VentRegion,
 };
 pub use particle_voids::{LiquidVoids, LiquidVoidsParameters};
+pub use pressure_filling::{pressure_fill_time, pressure_front};
 pub use underfill::{FILL_COLUMNS, FILL_TABLE, Underfill, VOIDS_TABLE};
 pub use viscosity::{CastroMacoskoParameters, CrossParameters, MAX_VISCOSITY, Viscosity};
 
@@ -83,7 +85,7 @@ impl Plugin for UnderfillPlugin {
     }
 
     fn references(&self) -> Vec<Box<dyn ReferenceFactory>> {
-        let mut references = vec![capillary_filling::factory()];
+        let mut references = vec![capillary_filling::factory(), pressure_filling::factory()];
         references.extend(liquid_references::factories());
         references.extend(capillary_references::factories());
         references.extend(meniscus_reference::factories());

@@ -28,6 +28,7 @@ mod liquid_inflow;
 mod liquid_voids;
 mod loads;
 mod phase_change;
+mod pressure_inlet;
 mod process_chain;
 mod process_fill_chain;
 mod render;

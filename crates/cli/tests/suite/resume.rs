@@ -192,6 +192,21 @@ fn incompressible_liquid_resumes_bit_for_bit() {
 }
 
 #[test]
+fn a_pressure_inlet_resumes_bit_for_bit() {
+    // The particles a pressure inlet has let in come back from the checkpoint; the run goes
+    // on letting them in strip by strip (0.06 s of the channel: 480 steps, about a dozen
+    // particles in, before and after the checkpoint at step 400).
+    resumed_equals_uninterrupted(
+        "pressure-inlet-channel.json",
+        &[
+            "solver.end_time=0.06",
+            r#"solver.mechanics={"incompressible":{"outflow":true}}"#,
+        ],
+        400,
+    );
+}
+
+#[test]
 fn liquid_entering_and_leaving_resumes_bit_for_bit() {
     // Resumed while the inlet still lets liquid in and the open right face lets it out.
     // At cfl 0.5 this splashing run (0.3 s, frames every 25 ms) inverts a particle at

@@ -1,12 +1,15 @@
 //! The `inflow` body shape: liquid that enters the domain through an inlet (the feed of an
-//! edge bead, a dispense needle moving along a line) at a set volume flow rate.
+//! edge bead, a dispense needle moving along a line) at a set volume flow rate, or from a
+//! reservoir held at a set pressure.
 //!
 //! The body's particles are all made at the start, as layers of a lattice across the
-//! inlet face, and wait there without mass (the `injected` field is 0). Layer j enters at
-//! t_j = start + (j + ½)·h/U, when its centres would cross the face moving at U; U is the
-//! rate over the lattice's area across the face, so the volume entered by time t is the
-//! rate times (t − start) to within half a layer. The incompressible mode moves them in
-//! (`solver/inflow.rs`).
+//! inlet face, and wait there without mass (the `injected` field is 0). At a set `rate`,
+//! layer j enters at t_j = start + (j + ½)·h/U, when its centres would cross the face
+//! moving at U; U is the rate over the lattice's area across the face, so the volume
+//! entered by time t is the rate times (t − start) to within half a layer. At a set
+//! `pressure` the reservoir holds `volume` (the layers made) and the liquid at the face
+//! sets when each layer enters (`solver/incompressible/pressure_inlet.rs`). The
+//! incompressible mode moves them in (`solver/incompressible/inflow.rs`).
 
 use super::Scene;
 use super::validator::Validator;
@@ -18,7 +21,8 @@ use serde::{Deserialize, Serialize};
 /// face (both without mass, left out of every sum).
 pub const INJECTED: &str = "injected";
 
-/// An inlet that liquid particles enter through at a set volume flow rate.
+/// An inlet that liquid particles enter through at a set volume flow rate (`rate`) or from
+/// a reservoir at a set pressure (`pressure` and `volume`).
 #[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Inflow {
@@ -33,8 +37,18 @@ pub struct Inflow {
     /// 3D only: a round inlet (a needle) of this radius instead of a square.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
-    /// Volume flow rate, m³/s (in 2D m²/s, per metre of depth).
-    pub rate: f64,
+    /// Volume flow rate, m³/s (in 2D m²/s, per metre of depth). Give this or `pressure`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate: Option<f64>,
+    /// Gauge pressure of the reservoir behind the inlet face, Pa: the face is held at it
+    /// while the flow lasts and the liquid enters as fast as it moves away from the face.
+    /// Give this or `rate`; with it, `volume`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pressure: Option<f64>,
+    /// With `pressure`: the liquid the reservoir holds, m³ (in 2D m² per metre of depth);
+    /// the flow stops when it has all entered.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub volume: Option<f64>,
     /// Time the flow starts, s.
     #[serde(default)]
     pub start: f64,
@@ -56,8 +70,20 @@ pub struct InflowLayout {
     pub direction: [f64; 3],
     /// The inlet's own velocity.
     pub inlet_velocity: [f64; 3],
-    /// Entry speed U along `direction`: the rate over the lattice's area across the face.
+    /// Entry speed U along `direction`: the rate over the lattice's area across the face
+    /// (0 for a pressure inlet, whose speed the liquid sets).
     pub speed: f64,
+    /// The reservoir's gauge pressure of a pressure inlet, Pa (`None` at a set rate).
+    pub pressure: Option<f64>,
+    /// Time the flow stops.
+    pub end: f64,
+    /// Half the inlet's extent across the face (half its width, or its radius).
+    pub half_width: f64,
+    /// Whether the inlet is round (3D, `radius`).
+    pub round: bool,
+    /// The two unit tangents of the face the lattice is laid along (the second is zero
+    /// in 2D).
+    pub tangents: [[f64; 3]; 2],
     /// Layers that enter before `end`.
     pub layers: usize,
     /// Particle spacing h.
@@ -69,9 +95,40 @@ pub struct InflowLayout {
 }
 
 impl InflowLayout {
-    /// Time layer `layer` enters (its centres cross the inlet face).
+    /// Time layer `layer` of a rate inlet enters (its centres cross the inlet face); a
+    /// pressure inlet's layers wait at the face's place at `start`.
     pub fn entry_time(&self, layer: usize) -> f64 {
+        if self.pressure.is_some() {
+            return self.start;
+        }
         self.start + (layer as f64 + 0.5) * self.spacing / self.speed
+    }
+
+    /// Whether `x` lies across the inlet face from its centre `c` (within half a cell `dx`
+    /// beyond its edge) and within `behind` before to `ahead` past the face along the
+    /// direction: the nodes a pressure inlet holds and the particles its speed is read from.
+    pub fn reaches(&self, c: &[f64; 3], x: &[f64; 3], behind: f64, ahead: f64, dx: f64) -> bool {
+        let mut r = [0.0; 3];
+        for a in 0..3 {
+            r[a] = x[a] - c[a];
+        }
+        let along: f64 = (0..3).map(|a| r[a] * self.direction[a]).sum();
+        if along < -behind || along >= ahead {
+            return false;
+        }
+        let across2: f64 = (0..3)
+            .map(|a| (r[a] - along * self.direction[a]).powi(2))
+            .sum();
+        let reach = self.half_width + 0.5 * dx;
+        if self.round {
+            return across2 <= reach * reach;
+        }
+        // A square inlet: each tangent component within reach (in 2D the second tangent
+        // is zero).
+        let [t1, t2] = self.tangents;
+        let a1: f64 = (0..3).map(|a| r[a] * t1[a]).sum();
+        let a2: f64 = (0..3).map(|a| r[a] * t2[a]).sum();
+        a1.abs() <= reach && a2.abs() <= reach
     }
 
     /// Centre of the inlet face at time `t` (≥ start).
@@ -128,6 +185,16 @@ impl Inflow {
         self.end.unwrap_or(end_time)
     }
 
+    /// The volume the inlet supplies in a scene ending at `end_time`: the rate times the
+    /// flow's duration, or the reservoir's volume (NaN when neither is given).
+    fn supplied_volume(&self, end_time: f64) -> f64 {
+        match (self.rate, self.volume) {
+            (Some(rate), _) => rate * (self.end_time(end_time) - self.start),
+            (None, Some(volume)) => volume,
+            (None, None) => f64::NAN,
+        }
+    }
+
     /// Lattice points across the face along one tangent (at least one).
     fn points_across(&self, h: f64) -> usize {
         let extent = self.width.or(self.radius.map(|r| 2.0 * r)).unwrap_or(h);
@@ -146,8 +213,7 @@ impl Inflow {
             n * n
         };
         let area = face * h.powi(dim as i32 - 1);
-        let time = self.end_time(end_time) - self.start;
-        let layers = (self.rate * time / area / h).max(0.0);
+        let layers = (self.supplied_volume(end_time) / area / h).max(0.0);
         if layers.is_finite() {
             layers * face
         } else {
@@ -183,9 +249,15 @@ impl Inflow {
             offsets.push([0.0; 3]);
         }
         let area = offsets.len() as f64 * h.powi(dim as i32 - 1);
-        let speed = self.rate / area;
-        let time = self.end_time(end_time) - self.start;
-        let layers = (time * speed / h + 0.5).floor().max(0.0) as usize;
+        let speed = self.rate.map_or(0.0, |rate| rate / area);
+        let layers = (self.supplied_volume(end_time) / area / h + 0.5)
+            .floor()
+            .max(0.0);
+        let layers = if layers.is_finite() {
+            layers as usize
+        } else {
+            0
+        };
         let mut center = [0.0; 3];
         center[..dim].copy_from_slice(&self.center[..dim]);
         let mut inlet_velocity = [0.0; 3];
@@ -197,6 +269,15 @@ impl Inflow {
             direction,
             inlet_velocity,
             speed,
+            pressure: if self.rate.is_some() {
+                None
+            } else {
+                self.pressure
+            },
+            end: self.end_time(end_time),
+            half_width: self.width.map_or(self.radius.unwrap_or(0.0), |w| 0.5 * w),
+            round: self.radius.is_some(),
+            tangents: [t1, t2],
             layers,
             spacing: h,
             start: self.start,
@@ -235,8 +316,53 @@ impl Inflow {
             );
             ok = false;
         }
-        v.positive(&format!("{path}.rate"), self.rate);
-        ok &= self.rate.is_finite() && self.rate > 0.0;
+        match (self.rate, self.pressure, self.volume) {
+            (Some(rate), None, None) => {
+                v.positive(&format!("{path}.rate"), rate);
+                ok &= rate.is_finite() && rate > 0.0;
+            }
+            (None, Some(pressure), Some(volume)) => {
+                if !pressure.is_finite() {
+                    v.err(
+                        format!("{path}.pressure"),
+                        "must be a finite gauge pressure, Pa",
+                    );
+                    ok = false;
+                }
+                v.positive(&format!("{path}.volume"), volume);
+                ok &= volume.is_finite() && volume > 0.0;
+            }
+            (None, Some(_), None) => {
+                v.err(
+                    format!("{path}.volume"),
+                    "a pressure inlet needs the `volume` its reservoir holds (m³; m² in 2D)",
+                );
+                ok = false;
+            }
+            (Some(_), _, Some(_)) => {
+                v.err(
+                    format!("{path}.volume"),
+                    "an inlet at a set `rate` takes its volume from the rate and the time: \
+                     remove this (or give `pressure` instead of `rate`)",
+                );
+                ok = false;
+            }
+            (Some(_), Some(_), None) => {
+                v.err(
+                    path,
+                    "give the inlet's `rate` or its reservoir's `pressure`, not both",
+                );
+                ok = false;
+            }
+            (None, None, _) => {
+                v.err(
+                    path,
+                    "give the inlet's volume flow `rate`, or its reservoir's `pressure` and \
+                     `volume`",
+                );
+                ok = false;
+            }
+        }
         if !(self.start.is_finite() && self.start >= 0.0) {
             v.err(format!("{path}.start"), "must be a finite time >= 0");
             ok = false;
@@ -311,7 +437,9 @@ mod tests {
             direction: vec![0.0, 0.0, -2.0],
             width,
             radius,
-            rate: 1e-6,
+            rate: Some(1e-6),
+            pressure: None,
+            volume: None,
             start: 0.5,
             end: Some(1.5),
             velocity: Some(vec![0.01, 0.0, 0.0]),
@@ -336,6 +464,23 @@ mod tests {
             let made = layout.particles() as f64;
             assert!((estimate - made).abs() <= 0.3 * made, "{estimate} {made}");
         }
+        // At a set pressure the reservoir's volume makes the layers, whatever the time.
+        let mut pressure = inflow(Some(4e-3), None);
+        pressure.rate = None;
+        pressure.pressure = Some(100.0);
+        pressure.volume = Some(3.2e-7);
+        let layout = pressure.layout(3, h, 10.0);
+        assert_eq!(layout.particles(), 320);
+        assert_eq!(layout.pressure, Some(100.0));
+        assert_eq!(layout.entry_time(7), 0.5);
+        assert_eq!(layout.end, 1.5);
+        assert_eq!(layout.half_width, 2e-3);
+        let estimate = pressure.particle_estimate(3, h, 10.0);
+        assert!((estimate - 320.0).abs() < 1e-9, "{estimate}");
+        let c = layout.center_at(0.5);
+        assert!(layout.reaches(&c, &[c[0] + 2.4e-3, c[1], c[2] - 0.5e-3], 0.0, 1e-3, 1e-3));
+        assert!(!layout.reaches(&c, &[c[0] + 2.6e-3, c[1], c[2] - 0.5e-3], 0.0, 1e-3, 1e-3));
+        assert!(!layout.reaches(&c, &[c[0], c[1], c[2] + 0.5e-3], 0.0, 1e-3, 1e-3));
         let round = inflow(None, Some(2e-3)).layout(3, h, 10.0);
         assert_eq!(round.offsets.len(), 12); // the 4 x 4 square less its corners
         for o in &round.offsets {

@@ -139,6 +139,9 @@ where
         if let Some(contact) = &self.contact {
             contact.save(c);
         }
+        if let Some(inflow) = &self.inflow {
+            inflow.save(c);
+        }
         if let Some(mode) = &mut self.mode {
             mode.save(c);
         }
@@ -179,6 +182,9 @@ where
         if let Some(contact) = &mut self.contact {
             contact.restore(c)?;
         }
+        if let Some(inflow) = &mut self.inflow {
+            inflow.restore(c, true)?;
+        }
         if let Some(mode) = &mut self.mode {
             mode.restore(c)?;
         }
@@ -199,6 +205,10 @@ where
         self.stress_scratch.restore(c)?;
         if let Some(contact) = &mut self.contact {
             contact.restore(c)?;
+        }
+        // A pressure inlet goes on from where its reservoir stood.
+        if let Some(inflow) = &mut self.inflow {
+            inflow.restore(c, false)?;
         }
         // Physics operators: those whose every field was carried over continue; the others
         // set their fields' initial values.

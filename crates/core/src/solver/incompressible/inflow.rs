@@ -13,7 +13,7 @@
 //! The grid must make room for what entered: the projection keeps the nodal velocity
 //! divergence-free, so on its own it holds the liquid at the inlet still and the entering
 //! particles pile up (filling examples/liquid-inflow-tank.json put 513 particles in one
-//! cell meant for 4). So in scenes with an inflow the pressure equation has a volume
+//! cell meant for 4). So in scenes with a rate inflow the pressure equation has a volume
 //! source: a cell whose particle volume V differs from its own V_c gives or takes a share
 //! β·r of the difference within the step, ∇·v = β·r(V − V_c)/(V_c·dt), which adds
 //! β·r(V − V_c)/(2^D·dt²) to the right-hand side at each of its corners (mod.rs,
@@ -39,6 +39,8 @@
 
 use super::super::DimensionDispatch;
 use super::super::simulation::Simulation;
+use super::pressure_inlet::{self, PressureDrive};
+use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::grid::node_position;
 use crate::kernels::Kernel;
 use crate::material::Material;
@@ -60,6 +62,33 @@ struct Plan<const D: usize> {
     /// Volume h^D and mass ρh^D of one particle.
     volume: f64,
     mass: f64,
+    /// A pressure inlet's state (pressure_inlet.rs); `None` at a set rate.
+    drive: Option<PressureDrive>,
+}
+
+impl<const D: usize> Plan<D> {
+    /// Whether its particle `index` (in the inflow's order, from 0) enters within the step
+    /// that ends at `now`.
+    fn is_due(&self, index: usize, now: f64) -> bool {
+        match &self.drive {
+            Some(drive) => drive.entry(index).is_some(),
+            None => self.layout.entry_time(index / self.layout.offsets.len()) <= now,
+        }
+    }
+
+    /// Where its particle `index`, which waited at `waiting`, lies when it enters at `now`,
+    /// and its velocity.
+    fn entry(&self, index: usize, waiting: Vector<D>, now: f64) -> (Vector<D>, Vector<D>) {
+        let layout = &self.layout;
+        let Some((k, past, speed)) = self.drive.as_ref().and_then(|d| d.entry(index)) else {
+            let entry = layout.entry_time(index / layout.offsets.len());
+            return (waiting + self.velocity * (now - entry), self.velocity);
+        };
+        let (c, o, n) = (layout.center_at(now), layout.offsets[k], layout.direction);
+        let place = Vector::<D>::from_fn(|a, _| c[a] + o[a] + past * n[a]);
+        let velocity = Vector::<D>::from_fn(|a, _| layout.inlet_velocity[a] + speed * n[a]);
+        (place, velocity)
+    }
 }
 
 /// The scene's inlets (inflow bodies) and outlets (open faces with `outflow`), and the
@@ -103,6 +132,9 @@ impl<const D: usize> Inflows<D> {
                     first_id: first_id[b.body] as u32,
                     end_id: (first_id[b.body] + b.volumes.len()) as u32,
                     velocity: Vector::<D>::from_fn(|a, _| entry[a]),
+                    drive: layout
+                        .pressure
+                        .map(|p| PressureDrive::new(p, density, &layout)),
                     layout,
                     volume,
                     mass: density * volume,
@@ -124,9 +156,44 @@ impl<const D: usize> Inflows<D> {
         &self.entered
     }
 
-    /// Whether liquid enters anywhere (the pressure equation's volume source is for them).
+    /// Whether liquid enters anywhere at a set rate (the pressure equation's volume source
+    /// is for them). A pressure inlet lets liquid in only where the flow made room for it,
+    /// so it needs none: with it, the source's corrections of the particles' drift in a
+    /// sheared channel kicked the pressure by twice the inlet's (pressure_inlet.rs).
     pub(super) fn has_inlets(&self) -> bool {
-        !self.plans.is_empty()
+        self.plans.iter().any(|p| p.drive.is_none())
+    }
+
+    /// The pressure inlets' layouts and states, in the order of the bodies.
+    pub(super) fn drives_mut(
+        &mut self,
+    ) -> impl Iterator<Item = (&InflowLayout, &mut PressureDrive)> {
+        self.plans
+            .iter_mut()
+            .filter_map(|p| p.drive.as_mut().map(|d| (&p.layout, d)))
+    }
+
+    /// The pressure inlets' layouts and states, in the order of the bodies.
+    pub(super) fn drives(&self) -> impl Iterator<Item = (&InflowLayout, &PressureDrive)> {
+        self.plans
+            .iter()
+            .filter_map(|p| p.drive.as_ref().map(|d| (&p.layout, d)))
+    }
+
+    /// Writes the pressure inlets' state into a checkpoint.
+    pub(in crate::solver) fn save(&self, c: &mut Checkpoint) {
+        pressure_inlet::save(self.drives().map(|(_, d)| d), c);
+    }
+
+    /// Reads the pressure inlets' state back: `strict` for a resume, else a stage taking
+    /// over (which keeps the closed state where the stage before had no pressure inlet).
+    pub(in crate::solver) fn restore(
+        &mut self,
+        c: &Checkpoint,
+        strict: bool,
+    ) -> Result<(), CheckpointError> {
+        let n = self.drives().count();
+        pressure_inlet::restore(self.drives_mut().map(|(_, d)| d), n, c, strict)
     }
 
     /// Sets `injected` to 0 for every inflow particle (setup: they all start waiting).
@@ -181,6 +248,9 @@ where
     let open_volume = *inflows
         .open_volume
         .get_or_insert_with(|| open_volume(&sim.grid, &sim.boundaries));
+    for (layout, drive) in inflows.drives_mut() {
+        drive.step(layout, &sim.particles, sim.time, dt);
+    }
     let now = sim.time + dt;
     let gravity = sim.settings.gravity;
     let (kinematics, ledger) = (&mut sim.kinematics, &mut sim.ledger);
@@ -212,12 +282,11 @@ where
         if injected[i] != 0.0 {
             continue;
         }
-        if let Some(plan) = inflows.plan_of(id[i]) {
-            let layer = (id[i] - plan.first_id) as usize / plan.layout.offsets.len();
-            if plan.layout.entry_time(layer) <= now {
-                entering += plan.volume;
-                due += 1;
-            }
+        if let Some(plan) = inflows.plan_of(id[i])
+            && plan.is_due((id[i] - plan.first_id) as usize, now)
+        {
+            entering += plan.volume;
+            due += 1;
         }
     }
     if due == 0 {
@@ -246,27 +315,28 @@ where
         sim.inflow = Some(inflows);
         return;
     }
-    for &(i, _) in &inflows.parked {
+    for &(i, waiting) in &inflows.parked {
         if injected[i] != 0.0 {
             continue;
         }
         let Some(plan) = inflows.plan_of(id[i]) else {
             continue;
         };
-        let layer = (id[i] - plan.first_id) as usize / plan.layout.offsets.len();
-        let entry = plan.layout.entry_time(layer);
-        if entry > now {
+        let index = (id[i] - plan.first_id) as usize;
+        if !plan.is_due(index, now) {
             continue;
         }
-        position[i] += plan.velocity * (now - entry);
-        velocity[i] = plan.velocity;
+        let (place, entry_velocity) = plan.entry(index, waiting, now);
+        position[i] = place;
+        velocity[i] = entry_velocity;
         mass[i] = plan.mass;
         // The step's statistics were taken before it entered: count it in them and book
         // the energy it brings, so the energy balance stays the method's own error.
-        let energy = plan.mass * (0.5 * plan.velocity.norm_squared() - gravity.dot(&position[i]));
-        kinematics.kinetic_energy += 0.5 * plan.mass * plan.velocity.norm_squared();
+        let speed2 = entry_velocity.norm_squared();
+        let energy = plan.mass * (0.5 * speed2 - gravity.dot(&position[i]));
+        kinematics.kinetic_energy += 0.5 * plan.mass * speed2;
         kinematics.gravity_energy -= plan.mass * gravity.dot(&position[i]);
-        kinematics.momentum += plan.velocity * plan.mass;
+        kinematics.momentum += entry_velocity * plan.mass;
         ledger.openings += energy;
         volume0[i] = plan.volume;
         stress[i] = Matrix::<D>::zeros();

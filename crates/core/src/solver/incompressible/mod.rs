@@ -26,7 +26,8 @@
 //!    into the air), not free fall. Then the walls and obstacles again, so no liquid
 //!    crosses them.
 //! 4. G2P (velocities, positions, velocity gradient); liquid enters through the inlets of
-//!    `inflow` bodies (inflow.rs) and, with `outflow`, leaves through the open domain faces
+//!    `inflow` bodies (inflow.rs; at a set pressure, pressure_inlet.rs, whose face nodes
+//!    the Poisson solve of step 2 holds at the reservoir's pressure) and, with `outflow`, leaves through the open domain faces
 //!    (outflow.rs); physics, viscous stress; the nodal pressure is interpolated to the
 //!    particles' `pressure` field.
 //!
@@ -47,6 +48,7 @@ mod extrapolate;
 pub(super) mod inflow;
 mod outflow;
 mod pressure;
+mod pressure_inlet;
 mod surface_tension;
 mod viscosity;
 mod volume_source;
@@ -127,6 +129,10 @@ pub(super) struct Incompressible<const D: usize> {
     source_rhs: Vec<f64>,
     source_pressure: Vec<f64>,
     source_solved: bool,
+    /// The nodes a pressure inlet holds this step (pressure_inlet.rs), and per node whether
+    /// it is one of them.
+    held: Vec<usize>,
+    is_held: Vec<bool>,
 }
 
 impl<const D: usize> Incompressible<D> {
@@ -138,6 +144,8 @@ impl<const D: usize> Incompressible<D> {
             source_rhs: Vec::new(),
             source_pressure: Vec::new(),
             source_solved: false,
+            held: Vec::new(),
+            is_held: Vec::new(),
             settings,
             stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
             gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
@@ -250,6 +258,8 @@ impl<const D: usize> Incompressible<D> {
         self.correction = vec![Vector::<D>::zeros(); n];
         self.layer = vec![u8::MAX; n];
         self.lumped_mass = vec![0.0; n];
+        self.is_held = vec![false; n];
+        self.held.clear();
         for v in self.solve_vectors() {
             *v = vec![0.0; n];
         }
@@ -346,11 +356,17 @@ where
 }
 
 /// Velocity CFL step before `cfl`, with the speed gravity adds within one step so that a
-/// liquid at rest does not get an unbounded step: dx / (|v|max + √(dx·|g|)).
+/// liquid at rest does not get an unbounded step: dx / (|v|max + √(dx·|g|) + v_inlet),
+/// where v_inlet is the most a pressure inlet may add (pressure_inlet.rs).
 fn convective_step<const D: usize, K: Kernel>(sim: &Simulation<D, K>) -> f64 {
     let dx = sim.grid.dx;
     let g = sim.settings.gravity.norm();
-    dx / (sim.kinematics.max_speed + (dx * g).sqrt()).max(1e-300)
+    let inlet = sim.inflow.as_ref().map_or(0.0, |f| {
+        f.drives()
+            .map(|(layout, drive)| drive.added_speed(layout, sim.time, dx))
+            .fold(0.0, f64::max)
+    });
+    dx / (sim.kinematics.max_speed + (dx * g).sqrt() + inlet).max(1e-300)
 }
 
 impl<const D: usize> Incompressible<D> {
@@ -491,6 +507,27 @@ impl<const D: usize> Incompressible<D> {
             );
             sim.surface_energy = surface.energy(&sim.grid, &self.open);
         }
+        // Pressure inlets hold their face at the reservoir's pressure (pressure_inlet.rs);
+        // the incremental projection solves for the change from the pressure it kept there.
+        for &i in &self.held {
+            self.is_held[i] = false;
+        }
+        self.held.clear();
+        if let Some(inflows) = &sim.inflow {
+            let viscosity = self.viscosity.as_ref();
+            pressure_inlet::hold_pressure(
+                inflows.drives(),
+                &sim.grid,
+                sim.time,
+                &self.inverse_diagonal,
+                |i| viscosity.map_or(0.0, |v| v.last_pressure(i)),
+                &mut self.pressure,
+                &mut self.held,
+            );
+            for &i in &self.held {
+                self.is_held[i] = true;
+            }
+        }
         let n = sim.grid.len();
         if let Some(mut air) = self.air.take() {
             air.find_pockets(
@@ -599,9 +636,9 @@ impl<const D: usize> Incompressible<D> {
                 *p -= q;
             }
         }
-        let air = self.air.as_ref();
+        let (air, held) = (self.air.as_ref(), &self.is_held);
         viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal, |i| {
-            air.is_some_and(|a| a.is_tied(i))
+            air.is_some_and(|a| a.is_tied(i)) || held[i]
         });
         self.pressure_correction(1.0, grid.dx);
         extrapolate::extrapolate_correction(grid, &mut self.correction, &mut self.layer);
