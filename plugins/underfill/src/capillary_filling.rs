@@ -213,17 +213,28 @@ pub(crate) fn observe_front(
     Some(compare("fill_time", measured, reference))
 }
 
-/// The problems of a `capillary_filling` section in a `dimension`-D scene.
-fn check(p: &CapillaryFillingParams, path: &str, scene: &Scene) -> Result<(), Vec<Issue>> {
-    let mut c = Checks::new(path);
-    c.axis("axis", p.axis, scene.dimension as usize);
-    if let Some(across) = p.across {
-        c.axis("across", across, scene.dimension as usize);
-        if across == p.axis {
+/// Checks a filling gap's place in a `scene`: `axis`, `across` (another axis) and the
+/// `materials` that fill it, and its `entrance`, `length` and `gap` numbers.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn check_gap(
+    c: &mut Checks,
+    scene: &Scene,
+    axis: usize,
+    across: Option<usize>,
+    materials: &[String],
+    entrance: f64,
+    length: f64,
+    gap: f64,
+) {
+    let dim = scene.dimension as usize;
+    c.axis("axis", axis, dim);
+    if let Some(across) = across {
+        c.axis("across", across, dim);
+        if across == axis {
             c.error("across", "must differ from `axis`");
         }
     }
-    for (i, m) in p.materials.iter().enumerate() {
+    for (i, m) in materials.iter().enumerate() {
         if !scene.materials.contains_key(m) {
             c.error(
                 &format!("materials[{i}]"),
@@ -231,9 +242,24 @@ fn check(p: &CapillaryFillingParams, path: &str, scene: &Scene) -> Result<(), Ve
             );
         }
     }
-    c.finite("entrance", p.entrance);
-    c.positive("length", p.length);
-    c.positive("gap", p.gap);
+    c.finite("entrance", entrance);
+    c.positive("length", length);
+    c.positive("gap", gap);
+}
+
+/// The problems of a `capillary_filling` section in a `dimension`-D scene.
+fn check(p: &CapillaryFillingParams, path: &str, scene: &Scene) -> Result<(), Vec<Issue>> {
+    let mut c = Checks::new(path);
+    check_gap(
+        &mut c,
+        scene,
+        p.axis,
+        p.across,
+        &p.materials,
+        p.entrance,
+        p.length,
+        p.gap,
+    );
     c.positive("surface_tension", p.surface_tension);
     if !(p.contact_angle >= 0.0 && p.contact_angle < 90.0) {
         c.error(

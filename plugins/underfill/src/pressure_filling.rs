@@ -5,7 +5,7 @@
 //! x² = h²Δp·t/(6μ): the capillary law of `capillary_filling` with the meniscus's
 //! 2σcosθ/h replaced by the inlet's Δp.
 
-use crate::capillary_filling::{FrontGauge, gap_depth, observe_front};
+use crate::capillary_filling::{FrontGauge, check_gap, gap_depth, observe_front};
 use mpm_core::output::Comparison;
 use mpm_core::reference::{
     Frame, Reference, ReferenceFactory, ReferenceLaw, RelativeL2, TypedReferenceFactory,
@@ -117,25 +117,16 @@ impl ReferenceLaw for PressureFilling {
 /// The problems of a `pressure_filling` section in a scene.
 fn check(p: &PressureFillingParams, path: &str, scene: &Scene) -> Result<(), Vec<Issue>> {
     let mut c = Checks::new(path);
-    let dim = scene.dimension as usize;
-    c.axis("axis", p.axis, dim);
-    if let Some(across) = p.across {
-        c.axis("across", across, dim);
-        if across == p.axis {
-            c.error("across", "must differ from `axis`");
-        }
-    }
-    for (i, m) in p.materials.iter().enumerate() {
-        if !scene.materials.contains_key(m) {
-            c.error(
-                &format!("materials[{i}]"),
-                format!("no material `{m}` in the scene's `materials`"),
-            );
-        }
-    }
-    c.finite("entrance", p.entrance);
-    c.positive("length", p.length);
-    c.positive("gap", p.gap);
+    check_gap(
+        &mut c,
+        scene,
+        p.axis,
+        p.across,
+        &p.materials,
+        p.entrance,
+        p.length,
+        p.gap,
+    );
     c.positive("pressure", p.pressure);
     c.positive("viscosity", p.viscosity);
     if !(p.start.is_finite() && p.start >= 0.0) {
