@@ -112,6 +112,38 @@ fn full_box_check(m: &Metrics, frames: &Frames) -> Result<String, String> {
     ))
 }
 
+/// The same box fed by a reservoir at 100 Pa holding twice what the box holds.
+fn pressure_full_box() -> Value {
+    let mut scene = full_box();
+    scene["name"] = json!("liquid-pressure-inlet-full-box");
+    scene["bodies"][0]["shape"]["inflow"] = json!({
+        "center": [0.0005, 0.002], "direction": [1, 0], "width": 0.002,
+        "pressure": 100.0, "volume": 2e-4
+    });
+    scene
+}
+
+/// The pressure-fed box: the run stopped because the inflow had nowhere to go (not for a
+/// failed solve, nor by a particle pushed out of the box), before its end.
+fn pressure_full_box_check(m: &Metrics, frames: &Frames) -> Result<String, String> {
+    let message = m
+        .diagnostic
+        .as_ref()
+        .map(|d| d.message.clone())
+        .unwrap_or_default();
+    if !message.contains("nowhere to go") || !message.contains("smaller `volume`") {
+        return Err(format!("stopped for another reason: {message}"));
+    }
+    let (_, inside) = largest_speed(frames, [0.01, 0.01])?;
+    if !inside {
+        return Err("a particle left the box".into());
+    }
+    Ok(format!(
+        "stopped at {:.4} s, the box full: the reservoir's liquid has nowhere to go",
+        m.simulated_time
+    ))
+}
+
 /// The largest particle speed over the frames, and whether every particle stayed inside
 /// `[0, hi]` per axis (2D).
 fn largest_speed(frames: &Frames, hi: [f64; 2]) -> Result<(f64, bool), String> {
@@ -229,6 +261,13 @@ pub fn cases() -> Vec<Case> {
             scene: full_box(),
             expected: Expected::Stopped,
             check: Some(full_box_check),
+        },
+        Case {
+            name: "liquid-pressure-inlet-full-box",
+            what: "the same box fed by a reservoir at 100 Pa that holds twice the box",
+            scene: pressure_full_box(),
+            expected: Expected::Stopped,
+            check: Some(pressure_full_box_check),
         },
     ]
 }

@@ -295,11 +295,19 @@ where
     }
     let liquid: f64 = volume0.iter().sum();
     if liquid + entering > open_volume * (1.0 + 1e-12) {
-        let name = inflows
-            .parked
-            .iter()
-            .find_map(|&(i, _)| inflows.plan_of(id[i]))
-            .map_or_else(String::new, |p| p.name.clone());
+        // Name the inlet of the first particle that is due (a pressure inlet's reservoir
+        // holds more than the domain: the flow it drives would go on filling it).
+        let plan = inflows.parked.iter().find_map(|&(i, _)| {
+            let plan = inflows.plan_of(id[i])?;
+            (injected[i] == 0.0 && plan.is_due((id[i] - plan.first_id) as usize, now))
+                .then_some(plan)
+        });
+        let name = plan.map_or_else(String::new, |p| p.name.clone());
+        let remedy = if plan.is_some_and(|p| p.drive.is_some()) {
+            "give its reservoir a smaller `volume`, end the inflow sooner with its `end`"
+        } else {
+            "end the inflow sooner with its `end`, lower its `rate`"
+        };
         sim.report.fail(PhysicsFault {
             field: INJECTED.into(),
             particle: None,
@@ -307,8 +315,7 @@ where
             message: format!(
                 "inflow `{name}`: {due} entering particles would take the liquid to {:.4e} \
                  of volume, past the {open_volume:.4e} the domain holds outside walls and \
-                 obstacles: the liquid has nowhere to go (end the inflow sooner with its \
-                 `end`, lower its `rate`, or enlarge the domain)",
+                 obstacles: the liquid has nowhere to go ({remedy}, or enlarge the domain)",
                 liquid + entering
             ),
         });
