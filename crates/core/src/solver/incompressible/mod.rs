@@ -498,6 +498,15 @@ impl<const D: usize> Incompressible<D> {
                 .zip(&self.cell_node)
                 .filter(|(v, _)| **v > 0.0)
                 .map(|(_, &node)| node);
+            // The liquid behind pressure inlets is no void (the face is no free surface).
+            if let Some(inflows) = &sim.inflow {
+                pressure_inlet::reservoir_nodes(
+                    inflows.drives(),
+                    &sim.grid,
+                    sim.time,
+                    &mut surface.reservoir,
+                );
+            }
             surface.surface_pressure(
                 &sim.grid,
                 liquid_cells,

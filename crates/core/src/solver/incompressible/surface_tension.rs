@@ -20,7 +20,8 @@
 //! curvature next to the contact line is the meniscus's. Obstacles do the same
 //! (`obstacles[].contact_angle`): nodes inside one, near its surface, take the image
 //! across the surface's nearest point, or across the far one of a thin obstacle where
-//! that is wetter; other bodies are not mirrored and look like voids.
+//! that is wetter; other bodies are not mirrored and look like voids. Behind a pressure
+//! inlet's face the colour is 1 (the reservoir's liquid), so the face is no free surface.
 //!
 //! Explicit in the surface's shape, so the step is bounded by a capillary wave limit:
 //! dt ≤ √(ρ·dx³ / (25π·σ)), 0.4 times Brackbill et al.'s √(ρ̄·dx³/(2πσ)) with ρ̄ = ρ/2
@@ -87,6 +88,9 @@ pub(super) struct SurfaceTension<const D: usize> {
     /// The nodes near obstacles' surfaces, inside (which take the colour's image) and in
     /// front (which take the image's share of what the particles put inside).
     pub(super) solid_images: Vec<SolidImage<D>>,
+    /// Nodes behind flowing pressure inlets' faces, full of the reservoir's liquid: the
+    /// colour is 1 there (pressure_inlet.rs), so an inlet face is not a free surface.
+    pub(super) reservoir: Vec<usize>,
 }
 
 impl<const D: usize> SurfaceTension<D> {
@@ -109,6 +113,7 @@ impl<const D: usize> SurfaceTension<D> {
             touches_liquid: Vec::new(),
             walls,
             solid_images,
+            reservoir: Vec::new(),
         }
     }
 
@@ -160,6 +165,9 @@ impl<const D: usize> SurfaceTension<D> {
         for (c, m) in self.colour.iter_mut().zip(&grid.mass) {
             *c = m * scale;
         }
+        for &i in &self.reservoir {
+            self.colour[i] = 1.0;
+        }
         self.mirror_walls(grid, true);
         for _ in 0..SMOOTHING {
             for d in 0..D {
@@ -175,6 +183,9 @@ impl<const D: usize> SurfaceTension<D> {
                 std::mem::swap(&mut self.colour, &mut self.scratch);
             }
             self.mirror_walls(grid, false);
+            for &i in &self.reservoir {
+                self.colour[i] = 1.0;
+            }
         }
     }
 
