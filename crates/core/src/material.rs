@@ -31,6 +31,34 @@ pub struct FieldSpec {
     pub initial: FieldInit,
 }
 
+impl FieldSpec {
+    /// The field's start values for `count` particles of a `dimension`-D run, `components`
+    /// numbers each (a run's start, and particles a stage converts into this material).
+    pub fn initial_values(&self, count: usize, dimension: usize) -> Vec<f64> {
+        let c = self.components;
+        let mut field = vec![0.0; count * c];
+        match self.initial {
+            FieldInit::Zero => {}
+            FieldInit::Identity => {
+                for p in 0..count {
+                    for d in 0..dimension {
+                        field[p * c + d * dimension + d] = 1.0;
+                    }
+                }
+            }
+            FieldInit::Constant(value) => field.fill(value),
+            FieldInit::Values(values) => {
+                for chunk in field.chunks_exact_mut(c) {
+                    for (x, v) in chunk.iter_mut().zip(values) {
+                        *x = *v;
+                    }
+                }
+            }
+        }
+        field
+    }
+}
+
 /// A state field the core averages over a material length after every step: each
 /// particle's `averaged` field becomes the volume-weighted mean of the `local` field over
 /// the particles of its material within `radius` (never lower than it was, at most

@@ -43,6 +43,7 @@ mod sparse_grid;
 mod stability_long;
 mod stability_map;
 mod stability_peer;
+mod stage_conversion;
 mod stage_removal;
 mod stages;
 mod stress_averaging;

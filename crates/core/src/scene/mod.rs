@@ -18,6 +18,7 @@ mod loads;
 mod obstacle;
 mod output;
 mod solver_settings;
+mod stage_conversion;
 mod stages;
 mod total_lagrangian;
 mod validate;

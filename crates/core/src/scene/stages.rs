@@ -8,6 +8,7 @@ use super::{Issue, Limits, ValidatedScene, parse_scene_value_limited};
 use crate::plugin::Registry;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// One stage of a staged scene.
@@ -19,13 +20,22 @@ pub struct StageSpec {
     pub name: String,
     /// Changes to the scene of the stage before (the base scene for the first): a JSON
     /// merge patch. It must set `solver.end_time` later than the stage before ends, and may
-    /// not change `name`, `dimension`, `domain`, `materials`, `bodies`, `contact` or `loads`.
+    /// not change `name`, `dimension`, `domain`, `materials`, `bodies`, `contact` or `loads`
+    /// (`convert` changes the bodies' materials).
     #[serde(default)]
     pub changes: serde_json::Value,
     /// Particles the stage removes as it takes over from the stage before (the gap's
     /// particles a fill left empty become the voids of the cured underfill).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub remove: Option<RemoveParticles>,
+    /// Materials the stage turns particles into as it takes over, after any removal:
+    /// `{"resin": "underfill"}` makes every particle of `resin` a particle of `underfill`
+    /// where it is (the liquid at the end of a fill becomes the curing underfill). A
+    /// converted particle starts as the new material's particles start a run: F = I, zero
+    /// stress, the law's initial state, its mass from the new density; velocity and the
+    /// physics fields (temperature, cure) carry over. Later stages keep the new material.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub convert: BTreeMap<String, String>,
 }
 
 /// A hand-over rule: the particles of `materials` (all when empty) whose particle field
@@ -63,6 +73,9 @@ pub struct ValidatedStage {
     pub scene: Box<ValidatedScene>,
     /// Particles the stage removes when it takes over.
     pub remove: Option<RemoveParticles>,
+    /// Materials whose particles the stage converts when it takes over (its scene's
+    /// bodies are already the converted ones).
+    pub convert: BTreeMap<String, String>,
 }
 
 /// Applies the merge patch `patch` to `target` (RFC 7396).
@@ -142,6 +155,12 @@ pub(super) fn validate_stages(
             }
         }
         merge_patch(&mut current, &stage.changes);
+        issues.extend(super::stage_conversion::apply_conversion(
+            &mut current,
+            &stage.convert,
+            &path,
+            i == 0,
+        ));
         let end = current
             .pointer("/solver/end_time")
             .and_then(|v| v.as_f64())
@@ -172,6 +191,7 @@ pub(super) fn validate_stages(
                     name: stage.name.clone(),
                     scene: Box::new(scene),
                     remove: stage.remove.clone(),
+                    convert: stage.convert.clone(),
                 });
             }
             Err(e) => issues.extend(e.issues.into_iter().map(|issue| {

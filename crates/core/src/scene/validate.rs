@@ -389,7 +389,15 @@ impl Validator {
                 }
             }
         }
-        for (name, m) in materials {
+        // A material no body is made of has no particles to check (a staged scene's
+        // liquid after its particles became the underfill, or the underfill before).
+        let used: BTreeSet<&str> = s.bodies.iter().map(|b| b.material.as_str()).collect();
+        let used_materials = || {
+            materials
+                .iter()
+                .filter(|(name, _)| used.contains(name.as_str()))
+        };
+        for (name, m) in used_materials() {
             for read in m.shared_reads() {
                 if read.required && !created.contains(read.name) {
                     self.err(
@@ -439,7 +447,7 @@ impl Validator {
                 format!("implicit viscosity does not go with surface tension yet (`{name}` has one): its incremental projection holds p = 0 on the free surface, where surface tension sets σκ; use \"explicit\""),
             );
         }
-        for (name, m) in materials {
+        for (name, m) in used_materials() {
             let liquid = m.liquid_viscosity().is_some();
             if incompressible && !liquid {
                 self.err(

@@ -248,7 +248,10 @@ where
         // A stage before without mechanics never updated the stress: the free strain its
         // physics applied (thermal expansion, cure shrinkage) is not in it yet. Take the
         // stress of the state handed over, as a run's start does.
-        if c.state("mechanics_off").as_bool() == Some(true) {
+        // Particles converted to another material at this hand-over start from F = I and
+        // zero stress: their stress (and each group's wave speed) is computed the same way.
+        let converted = c.state(super::conversion::CONVERTED).as_bool() == Some(true);
+        if c.state("mechanics_off").as_bool() == Some(true) || converted {
             self.update_stresses(0.0);
         }
         if let Some(mut mode) = self.mode.take() {

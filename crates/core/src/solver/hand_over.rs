@@ -14,7 +14,7 @@ use crate::checkpoint::Checkpoint;
 use crate::scene::{RemoveParticles, ValidatedScene};
 
 /// The original index of each particle the run still has, in id order.
-fn kept(total: usize, removed: &[u32]) -> Vec<u32> {
+pub(super) fn kept(total: usize, removed: &[u32]) -> Vec<u32> {
     let mut out = Vec::with_capacity(total - removed.len().min(total));
     let mut next = removed.iter().peekable();
     for id in 0..total as u32 {
@@ -28,7 +28,7 @@ fn kept(total: usize, removed: &[u32]) -> Vec<u32> {
 }
 
 /// The material of every original particle.
-fn materials_by_particle(full: &ValidatedScene) -> Vec<&str> {
+pub(super) fn materials_by_particle(full: &ValidatedScene) -> Vec<&str> {
     full.bodies
         .iter()
         .flat_map(|b| {
@@ -38,18 +38,31 @@ fn materials_by_particle(full: &ValidatedScene) -> Vec<&str> {
         .collect()
 }
 
+/// The names of the material groups of a run of `scene`: one per material a body is made
+/// of, in sorted order (the order of their contiguous rows).
+pub(super) fn group_names(scene: &ValidatedScene) -> Vec<&str> {
+    let mut names: Vec<&str> = scene
+        .bodies
+        .iter()
+        .map(|b| scene.scene.bodies[b.body].material.as_str())
+        .collect();
+    names.sort_unstable();
+    names.dedup();
+    names
+}
+
 /// The rows of a hand-over state that had some particles removed already.
-struct StateRows<'a> {
+pub(super) struct StateRows<'a> {
     /// The material of every original particle.
-    materials: Vec<&'a str>,
+    pub materials: Vec<&'a str>,
     /// The original index of each particle of the state, by id.
-    kept: Vec<u32>,
+    pub kept: Vec<u32>,
     /// The state's particle id of each row.
-    ids: &'a [f64],
+    pub ids: &'a [f64],
 }
 
 /// The rows of the state `c`, which had `removed` removed.
-fn state_rows<'a>(
+pub(super) fn state_rows<'a>(
     c: &'a Checkpoint,
     full: &'a ValidatedScene,
     removed: &[u32],
@@ -67,7 +80,7 @@ fn state_rows<'a>(
     })
 }
 
-fn refused(path: &str, message: String) -> RunError {
+pub(super) fn refused(path: &str, message: String) -> RunError {
     RunError::Refused {
         path: path.into(),
         message,
@@ -194,14 +207,7 @@ pub(super) fn remove_rows(
         .map(|&i| kept_before[i as usize] as usize)
         .collect();
     let keep: Vec<bool> = originals.iter().map(|&o| new_id[o] != u32::MAX).collect();
-    // Material groups: one per material name in sorted order, rows contiguous.
-    let mut group_names: Vec<&str> = full
-        .bodies
-        .iter()
-        .map(|b| full.scene.bodies[b.body].material.as_str())
-        .collect();
-    group_names.sort_unstable();
-    group_names.dedup();
+    let group_names = group_names(full);
     let mut group_rows = Vec::with_capacity(group_names.len());
     let mut start = 0;
     for name in &group_names {

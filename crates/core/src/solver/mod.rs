@@ -19,6 +19,7 @@ mod cohesive;
 mod conservation;
 mod contact;
 mod contact_step;
+mod conversion;
 mod cpdi;
 mod cpdi_stencils;
 mod explicit;

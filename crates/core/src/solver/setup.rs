@@ -12,7 +12,7 @@ use super::volume_averaging::VolumeAverage;
 use crate::boundary::Boundaries;
 use crate::grid::Grid;
 use crate::kernels::Kernel;
-use crate::material::{FieldInit, Material};
+use crate::material::Material;
 use crate::math::{Matrix, Vector, vector_from_slice};
 use crate::particles::{MaterialGroup, Particles};
 use crate::physics::{GroupView, Interpolation, ParticleFields, PhysicsReport};
@@ -196,29 +196,7 @@ where
                 .material
                 .state_fields()
                 .iter()
-                .map(|spec| {
-                    let c = spec.components;
-                    let mut field = vec![0.0; count * c];
-                    match spec.initial {
-                        FieldInit::Zero => {}
-                        FieldInit::Identity => {
-                            for p in 0..count {
-                                for d in 0..D {
-                                    field[p * c + d * D + d] = 1.0;
-                                }
-                            }
-                        }
-                        FieldInit::Constant(value) => field.fill(value),
-                        FieldInit::Values(values) => {
-                            for chunk in field.chunks_exact_mut(c) {
-                                for (x, v) in chunk.iter_mut().zip(values) {
-                                    *x = *v;
-                                }
-                            }
-                        }
-                    }
-                    field
-                })
+                .map(|spec| spec.initial_values(count, D))
                 .collect();
         }
 

@@ -4,9 +4,9 @@
 //! The hand-over goes through the same [`Checkpoint`] a resume uses, so a stage may even
 //! change the kernel (the dimension and kernel are types: each stage is dispatched anew).
 
-use super::hand_over;
 use super::simulation::Simulation;
 use super::{DimensionDispatch, RunError, RunObserver, SimulationVisitor, dispatch};
+use super::{conversion, hand_over};
 use crate::checkpoint::Checkpoint;
 use crate::damage_measures::DamageFigures;
 use crate::fatigue_measures::{FatigueFigures, fatigue_figures};
@@ -91,11 +91,20 @@ pub(super) fn run_stages(
         };
         let resumed_here = resume.is_some() && index == first;
         let removed_before = removed.len();
+        // The particles' materials as the stage before left them (a conversion there
+        // changed them).
+        let before = match index {
+            0 => scene,
+            _ => &*scene.stages[index - 1].scene,
+        };
         if let (Some(rule), Some(c), false) = (&stage.remove, &handed_over, resumed_here) {
             let path = format!("stages[{index}].remove");
-            let after = hand_over::apply_rule(c, rule, &removed, scene, &path)?;
-            handed_over = Some(hand_over::remove_rows(c, scene, &removed, &after)?);
+            let after = hand_over::apply_rule(c, rule, &removed, before, &path)?;
+            handed_over = Some(hand_over::remove_rows(c, before, &removed, &after)?);
             removed = after;
+        }
+        if let (false, Some(c), false) = (stage.convert.is_empty(), &handed_over, resumed_here) {
+            handed_over = Some(conversion::convert_rows(c, before, &stage.scene, &removed)?);
         }
         let removed_here = match (resumed_here, resume) {
             (true, Some(c)) => c.state("stage")["removed_at_hand_over"]
