@@ -253,3 +253,112 @@ fn a_run_resumed_after_a_conversion_continues_bit_for_bit() {
         }
     }
 }
+
+/// A resin bead (liquid particles, σ = 0.07 N/m, 30° on floor and die) drawn under a die
+/// (a stick obstacle) over a stick floor, then, converted to the curing `phase_mixture`
+/// underfill, cured in an oven (the floor's convection) and cooled, implicit static: the
+/// fill, cure and cool-down of one job on particles.
+fn fill_and_cure() -> Value {
+    let cure = json!({"kinetics": {"a1": 4000.0, "e1": 60000.0, "a2": 100000.0, "e2": 60000.0, "m": 1.0, "n": 1.5},
+                      "heat_of_reaction": 300000.0, "gel_point": 0.6, "shrinkage": 0.02,
+                      "glass_transition": {"tg0": 250.0, "tg_inf": 420.0, "lambda": 0.4}});
+    let thermal = json!({"conductivity": 0.5, "specific_heat": 1200.0, "initial_temperature": 298.0, "expansion": 3e-5});
+    json!({
+        "name": "fill-cure",
+        "dimension": 2,
+        "domain": {"min": [0.0, 0.0], "max": [0.016, 0.006], "cell_size": 0.0005,
+                   "walls": [{"sides": ["y-"], "condition": "stick", "contact_angle": 30.0}]},
+        "obstacles": [{"name": "die", "shape": {"box": {"min": [0.006, 0.003], "max": [0.016, 0.006]}},
+                       "condition": "stick", "contact_angle": 30.0}],
+        "solver": {"end_time": 0.2, "kernel": "bspline2", "transfer": "apic", "cfl": 0.5,
+                   "gravity": [0.0, 0.0], "mechanics": {"incompressible": {}}},
+        "materials": {
+            "resin": {"type": "liquid", "density": 1100.0, "viscosity": {"newtonian": 0.3}, "surface_tension": 0.07},
+            "underfill": {"type": "phase_mixture", "density": 1600.0,
+                          "solid": {"youngs_modulus": 8e9, "poisson_ratio": 0.3},
+                          "liquid": {"viscosity": 10.0, "bulk_modulus": 2e9, "pressure_relaxation_time": 0.001}}
+        },
+        "physics": {
+            "thermal": {"materials": {"resin": thermal, "underfill": thermal},
+                        "boundaries": [{"sides": ["y-"], "convection": {"coefficient": 200.0,
+                            "ambient": [[0.0, 298.0], [0.2, 298.0], [600.2, 423.0], [2100.2, 423.0], [3000.2, 298.0]]}}]},
+            "phase_change": {"materials": {"resin": {"cure": cure}, "underfill": {"cure": cure}}}
+        },
+        "bodies": [{"name": "bead", "material": "resin",
+                    "shape": {"box": {"min": [0.0015, 0.0], "max": [0.0075, 0.003]}}, "particles_per_cell": 2}],
+        "output": {"frames": 4, "fields": ["x", "v", "temperature", "cure"]},
+        "stages": [
+            {"name": "fill", "changes": {}},
+            {"name": "cure", "convert": {"resin": "underfill"},
+             "changes": {"solver": {"end_time": 2100.2, "dt": 30.0, "cfl": null,
+                                    "mechanics": {"incompressible": null, "implicit": {"form": "static"}}},
+                         "output": {"frames": 14, "fields": ["x", "stress", "temperature", "cure", "solid_fraction", "material"]}}},
+            {"name": "cool", "changes": {"solver": {"end_time": 3000.2}, "output": {"frames": 6}}}
+        ]
+    })
+}
+
+#[test]
+fn a_filled_liquid_cures_and_cools_as_the_underfill_with_its_temperature_and_cure() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = run_scene_json(dir.path(), "fc", &fill_and_cure());
+    for stage in 0..3 {
+        assert_eq!(m["stages"][stage]["outcome"], "finished", "{m}");
+    }
+    let open = |stage: &str| {
+        ResultStore::open(dir.path().join("fc/fill-cure.zarr"))
+            .unwrap()
+            .stage(stage)
+            .unwrap()
+    };
+    let (fill, cure, cool) = (open("fill"), open("cure"), open("cool"));
+    let last = fill.frame_count().unwrap() - 1;
+    // The liquid hands over where it is, with its temperature and cure, bit for bit.
+    for name in ["x", "temperature", "cure"] {
+        let (a, b) = (
+            fill.frame(name, last).unwrap().1,
+            cure.frame(name, 0).unwrap().1,
+        );
+        assert_eq!(bits(&a), bits(&b), "{name} changed at the hand-over");
+    }
+    // Every particle is underfill now; it starts unstressed and liquid (cure ≈ 0).
+    let material = cure.frame("material", 0).unwrap().1;
+    assert!(material.iter().all(|&k| k == material[0]));
+    let peak = |store: &ResultStore, frame: u64| {
+        store
+            .frame("stress", frame)
+            .unwrap()
+            .1
+            .iter()
+            .fold(0.0f64, |m, s| m.max(s.abs()))
+    };
+    let cure_at = |store: &ResultStore, frame: u64| {
+        let c = store.frame("cure", frame).unwrap().1;
+        c.iter().sum::<f64>() / c.len() as f64
+    };
+    assert!(cure_at(&cure, 0) < 1e-6);
+    // Before the gel point the resin carries next to nothing (its pressure relaxes); after
+    // it, shrinkage against the die and the floor, then the cool-down, stress it.
+    let frames = cure.frame_count().unwrap();
+    let before_gel = (0..frames)
+        .filter(|&f| cure_at(&cure, f) < 0.5)
+        .max()
+        .unwrap();
+    assert!(before_gel >= 1);
+    let (liquid, cured, cooled) = (
+        peak(&cure, before_gel),
+        peak(&cure, frames - 1),
+        peak(&cool, cool.frame_count().unwrap() - 1),
+    );
+    eprintln!(
+        "fill and cure: peak |stress| {liquid:.3e} Pa before the gel point, {cured:.3e} cured, \
+         {cooled:.3e} cooled; mean cure {:.3}",
+        cure_at(&cure, frames - 1)
+    );
+    assert!(liquid < 1e3, "{liquid} Pa in the liquid resin");
+    assert!(cure_at(&cure, frames - 1) > 0.6, "never gelled");
+    assert!(
+        cured > 1e5 && cooled > cured,
+        "{cured} Pa cured, {cooled} Pa cooled"
+    );
+}
