@@ -41,6 +41,17 @@ pub enum Command {
         /// files of the scene are looked up from the current folder.
         #[arg(long, value_name = "STORE", conflicts_with = "set")]
         resume: Option<PathBuf>,
+        /// Start the scene where the run of this result store left its particles (its
+        /// latest checkpoint; same dimension, domain, materials, bodies, contact and
+        /// loads), as a stage takes over from the stage before; the scene's end time is
+        /// absolute.
+        #[arg(
+            long,
+            value_name = "STORE",
+            requires = "scene",
+            conflicts_with = "resume"
+        )]
+        from: Option<PathBuf>,
         /// Output folder.
         #[arg(long, default_value = "results")]
         out: PathBuf,
@@ -327,11 +338,13 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
         Command::Run {
             scene,
             resume,
+            from,
             out,
             set,
             json,
             quiet,
         } => {
+            let mut handed_over = None;
             let (validated, store, scene, checkpoint) = match (scene, resume) {
                 (Some(scene), _) => {
                     let validated = match load_scene(&scene, &set, &registry) {
@@ -339,6 +352,25 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                         Err(e) => return Ok(report_load_error(&scene, e)),
                     };
                     let store = out.join(format!("{}.zarr", validated.scene.name));
+                    if let Some(from) = &from {
+                        let same = |a: &std::path::Path, b: &std::path::Path| {
+                            a.canonicalize()
+                                .ok()
+                                .is_some_and(|a| b.canonicalize().ok() == Some(a))
+                        };
+                        if same(from, &store) {
+                            eprintln!(
+                                "error: {}: the run would write over the store it starts from; \
+                                 give another --out or scene name",
+                                store.display()
+                            );
+                            return Ok(ExitStatus::InvalidInput);
+                        }
+                        match crate::from_store::load(from, &validated) {
+                            Ok(c) => handed_over = Some(c),
+                            Err(status) => return Ok(status),
+                        }
+                    }
                     (validated, store, scene, None)
                 }
                 (None, Some(store)) => match crate::resume::load(&store, &registry) {
@@ -350,13 +382,19 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 (None, None) => anyhow::bail!("give a scene file or --resume STORE"),
             };
             let mut progress = ProgressReporter::new(quiet || json);
-            let result = match &checkpoint {
-                None => run_scene(
+            let result = match (&checkpoint, &handed_over) {
+                (None, Some(c)) => mpm_core::solver::run_scene_from(
+                    &validated,
+                    c,
+                    &mut mpm_io::ZarrSink::new(&store),
+                    &mut progress,
+                ),
+                (None, None) => run_scene(
                     &validated,
                     &mut mpm_io::ZarrSink::new(&store),
                     &mut progress,
                 ),
-                Some(c) => {
+                (Some(c), _) => {
                     let frames = c.state("frames").as_u64().unwrap_or(0) as usize;
                     let mut sink = mpm_io::ZarrSink::resume(&store, frames);
                     mpm_core::solver::resume_scene(&validated, c, &mut sink, &mut progress)

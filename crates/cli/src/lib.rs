@@ -6,6 +6,7 @@ pub mod bench_peer;
 mod client;
 mod commands;
 mod exit_status;
+mod from_store;
 mod job;
 mod overrides;
 mod plot;

@@ -34,6 +34,7 @@ mod process_fill_chain;
 mod render;
 mod resume;
 mod rom;
+mod run_from;
 mod service;
 mod service_access;
 mod service_postgres;

@@ -246,6 +246,50 @@ pub fn resume_scene(
     )
 }
 
+/// Runs an unstaged `scene` from the state `handed_over` (a checkpoint of another run on the
+/// same bodies, materials and domain: `mpm run --from STORE`) to its end time, as a stage
+/// takes over from the stage before: the particles with every field both runs have, the
+/// clock and the contact state; energy balance, reference and mode start afresh.
+pub fn run_scene_from(
+    scene: &ValidatedScene,
+    handed_over: &crate::checkpoint::Checkpoint,
+    sink: &mut dyn OutputSink,
+    observer: &mut dyn RunObserver,
+) -> Result<Metrics, RunError> {
+    struct TakeOver<'a> {
+        sink: &'a mut dyn OutputSink,
+        observer: &'a mut dyn RunObserver,
+        handed_over: &'a crate::checkpoint::Checkpoint,
+    }
+    impl SimulationVisitor for TakeOver<'_> {
+        type Output = Result<Metrics, RunError>;
+        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
+        where
+            dyn Material: DimensionDispatch<D>,
+        {
+            sim.run_stage(self.sink, self.observer, Some(self.handed_over), false)
+                .map(|(metrics, _)| metrics)
+        }
+    }
+    if !scene.stages.is_empty() {
+        return Err(RunError::Refused {
+            path: "stages".into(),
+            message: "a staged scene starts from its own first stage, not from another run's \
+                      state: run its stages one by one, or continue the other run's scene with \
+                      stages"
+                .into(),
+        });
+    }
+    dispatch(
+        scene,
+        TakeOver {
+            sink,
+            observer,
+            handed_over,
+        },
+    )
+}
+
 /// A run from the start, or from a checkpoint of it.
 struct Run<'a> {
     sink: &'a mut dyn OutputSink,
