@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use common::{copy_dir, mpm, run_scene_json, text, write_scene};
+use common::{mpm, resume_staged_copy, run_scene_json, text, write_scene};
 use mpm_io::ResultStore;
 use serde_json::{Value, json};
 
@@ -155,19 +155,8 @@ fn a_run_resumed_after_a_removal_continues_bit_for_bit() {
     let mut s = blocks(true);
     s["stages"][1]["remove"] = json!({"field": "temperature", "below": 275.0});
     s["output"]["checkpoint"] = json!({"steps": 40});
-    let whole = run_scene_json(dir.path(), "whole", &s);
-    let store = dir.path().join("whole/blocks.zarr");
-    let copy = dir.path().join("copy.zarr");
-    copy_dir(&store, &copy);
-    let out = mpm(
-        &["run", "--resume", "copy.zarr", "-q", "--json"],
-        dir.path(),
-    );
-    assert!(out.status.success(), "{}", text(&out));
-    let resumed: Value = serde_json::from_slice(&out.stdout).unwrap();
-    let step = resumed["resumed_from_step"].as_u64().unwrap();
-    let hold_steps = whole["stages"][0]["steps"].as_u64().unwrap();
-    assert!(step > hold_steps, "resumed at {step}, in the hold stage");
+    let (whole, resumed) =
+        resume_staged_copy(dir.path(), &s, "fall", &["x", "v", "stress", "temperature"]);
     let strip = |m: &Value| {
         let mut stages = m["stages"].clone();
         for stage in stages.as_array_mut().unwrap() {
@@ -180,18 +169,6 @@ fn a_run_resumed_after_a_removal_continues_bit_for_bit() {
         resumed["stages"][1]["removed_particles"],
         json!(per_block_particles())
     );
-    let open = |path: &std::path::Path| ResultStore::open(path).unwrap().stage("fall").unwrap();
-    let (a, b) = (open(&store), open(&copy));
-    for frame in 0..a.frame_count().unwrap() {
-        for name in ["x", "v", "stress", "temperature"] {
-            let (p, q) = (
-                a.frame(name, frame).unwrap().1,
-                b.frame(name, frame).unwrap().1,
-            );
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&p), bits(&q), "{name} differs at frame {frame}");
-        }
-    }
 }
 
 /// Particles of one 20 mm block at two particles per 2.5 mm cell and direction.

@@ -259,6 +259,46 @@ pub fn run_scene_json(dir: &Path, name: &str, scene: &serde_json::Value) -> serd
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// Runs the staged `scene` (it must write checkpoints) into `dir/whole/`, resumes a copy of
+/// its store from its latest checkpoint and checks that the checkpoint lies in a stage after
+/// the first and that the `fields` of every frame of stage `stage` are the uninterrupted
+/// run's bit for bit. Returns the whole run's and the resumed run's metrics.
+pub fn resume_staged_copy(
+    dir: &Path,
+    scene: &serde_json::Value,
+    stage: &str,
+    fields: &[&str],
+) -> (serde_json::Value, serde_json::Value) {
+    let whole = run_scene_json(dir, "whole", scene);
+    let store = dir.join(format!("whole/{}.zarr", scene["name"].as_str().unwrap()));
+    let copy = dir.join("copy.zarr");
+    copy_dir(&store, &copy);
+    let out = mpm(&["run", "--resume", "copy.zarr", "-q", "--json"], dir);
+    assert!(out.status.success(), "{}", text(&out));
+    let resumed: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let step = resumed["resumed_from_step"].as_u64().unwrap();
+    let first_steps = whole["stages"][0]["steps"].as_u64().unwrap();
+    assert!(step > first_steps, "resumed at {step}, in the first stage");
+    let open = |path: &Path| {
+        mpm_io::ResultStore::open(path)
+            .unwrap()
+            .stage(stage)
+            .unwrap()
+    };
+    let (a, b) = (open(&store), open(&copy));
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for frame in 0..a.frame_count().unwrap() {
+        for name in fields {
+            let (p, q) = (
+                a.frame(name, frame).unwrap().1,
+                b.frame(name, frame).unwrap().1,
+            );
+            assert_eq!(bits(&p), bits(&q), "{name} differs at frame {frame}");
+        }
+    }
+    (whole, resumed)
+}
+
 /// The measured and reference values of the run's comparison `name` (panics if missing).
 #[allow(dead_code)]
 pub fn comparison(m: &mpm_core::output::Metrics, name: &str) -> (f64, f64) {
