@@ -144,4 +144,10 @@ fn a_run_from_a_store_is_refused_where_it_cannot_take_over() {
     let mut after = cool.clone();
     after["solver"]["end_time"] = json!(20000.0);
     refused(&after, "s/underfill-cure-cycles.zarr", "its run was staged");
+    // A staged scene starts from its own first stage.
+    refused(
+        &staged,
+        "r/cure.zarr",
+        "a staged scene starts from its own first stage",
+    );
 }

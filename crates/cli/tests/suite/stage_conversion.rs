@@ -298,9 +298,17 @@ fn a_filled_liquid_cures_and_cools_as_the_underfill_with_its_temperature_and_cur
         );
         assert_eq!(bits(&a), bits(&b), "{name} changed at the hand-over");
     }
-    // Every particle is underfill now; it starts unstressed and liquid (cure ≈ 0).
+    // Every particle is underfill now (one material group, and the stage's figures name
+    // only the underfill, the fill's only the resin); it starts liquid (cure ≈ 0).
     let material = cure.frame("material", 0).unwrap().1;
     assert!(material.iter().all(|&k| k == material[0]));
+    let materials = |stage: usize| {
+        let peaks = m["stages"][stage]["peak_von_mises"].as_object().unwrap();
+        peaks.keys().cloned().collect::<Vec<_>>()
+    };
+    assert_eq!(materials(0), ["resin"]);
+    assert_eq!(materials(1), ["underfill"]);
+    assert_eq!(materials(2), ["underfill"]);
     let peak = |store: &ResultStore, frame: u64| {
         store
             .frame("stress", frame)

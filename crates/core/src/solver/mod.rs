@@ -220,7 +220,7 @@ pub fn run_scene(
         Run {
             sink,
             observer,
-            checkpoint: None,
+            from: RunFrom::Start,
         },
     )
 }
@@ -241,7 +241,7 @@ pub fn resume_scene(
         Run {
             sink,
             observer,
-            checkpoint: Some(checkpoint),
+            from: RunFrom::Resume(checkpoint),
         },
     )
 }
@@ -256,21 +256,6 @@ pub fn run_scene_from(
     sink: &mut dyn OutputSink,
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
-    struct TakeOver<'a> {
-        sink: &'a mut dyn OutputSink,
-        observer: &'a mut dyn RunObserver,
-        handed_over: &'a crate::checkpoint::Checkpoint,
-    }
-    impl SimulationVisitor for TakeOver<'_> {
-        type Output = Result<Metrics, RunError>;
-        fn visit<const D: usize, K: Kernel>(self, mut sim: Simulation<D, K>) -> Self::Output
-        where
-            dyn Material: DimensionDispatch<D>,
-        {
-            sim.run_stage(self.sink, self.observer, Some(self.handed_over), false)
-                .map(|(metrics, _)| metrics)
-        }
-    }
     if !scene.stages.is_empty() {
         return Err(RunError::Refused {
             path: "stages".into(),
@@ -282,19 +267,29 @@ pub fn run_scene_from(
     }
     dispatch(
         scene,
-        TakeOver {
+        Run {
             sink,
             observer,
-            handed_over,
+            from: RunFrom::TakeOver(handed_over),
         },
     )
 }
 
-/// A run from the start, or from a checkpoint of it.
+/// Where an unstaged run starts.
+enum RunFrom<'a> {
+    /// The scene's initial state.
+    Start,
+    /// A checkpoint of the same run (`mpm run --resume`).
+    Resume(&'a crate::checkpoint::Checkpoint),
+    /// Another run's state, taken over as a stage takes over (`mpm run --from`).
+    TakeOver(&'a crate::checkpoint::Checkpoint),
+}
+
+/// A run from the start, from a checkpoint of it, or from another run's state.
 struct Run<'a> {
     sink: &'a mut dyn OutputSink,
     observer: &'a mut dyn RunObserver,
-    checkpoint: Option<&'a crate::checkpoint::Checkpoint>,
+    from: RunFrom<'a>,
 }
 
 impl SimulationVisitor for Run<'_> {
@@ -303,9 +298,12 @@ impl SimulationVisitor for Run<'_> {
     where
         dyn Material: DimensionDispatch<D>,
     {
-        match self.checkpoint {
-            Some(c) => sim.resume(self.sink, self.observer, c),
-            None => sim.run(self.sink, self.observer),
+        match self.from {
+            RunFrom::Start => sim.run(self.sink, self.observer),
+            RunFrom::Resume(c) => sim.resume(self.sink, self.observer, c),
+            RunFrom::TakeOver(c) => sim
+                .run_stage(self.sink, self.observer, Some(c), false)
+                .map(|(metrics, _)| metrics),
         }
     }
 }
