@@ -176,6 +176,8 @@ enum Solid<const D: usize> {
         center: Vector<D>,
         axis: Vector<D>,
         radius: f64,
+        /// Half the length along the axis (infinite for an endless cylinder).
+        half_length: f64,
     },
 }
 
@@ -223,16 +225,35 @@ impl<const D: usize> Solid<D> {
                 center,
                 axis,
                 radius,
+                half_length,
             } => {
                 let r = x - center;
-                let radial = r - axis * r.dot(axis);
+                let along = r.dot(axis);
+                let radial = r - axis * along;
                 let len = radial.norm();
-                let n = if len > 0.0 {
+                let n_side = if len > 0.0 {
                     radial / len
                 } else {
                     unit::<D>(0)
                 };
-                (len - radius, n)
+                let side = len - radius;
+                if !half_length.is_finite() {
+                    return (side, n_side);
+                }
+                // A finite cylinder: the side and the end caps, as for a box of two axes.
+                let cap = along.abs() - half_length;
+                let n_cap = axis * along.signum();
+                if side <= 0.0 && cap <= 0.0 {
+                    if side > cap {
+                        (side, n_side)
+                    } else {
+                        (cap, n_cap)
+                    }
+                } else {
+                    let out = n_side * side.max(0.0) + n_cap * cap.max(0.0);
+                    let distance = out.norm();
+                    (distance, out / distance)
+                }
             }
             Solid::Box { min, max } => {
                 // Inside: distance to the nearest face; outside: Euclidean distance.
@@ -339,10 +360,12 @@ impl<const D: usize> Boundaries<D> {
                         center,
                         axis,
                         radius,
+                        length,
                     } => Solid::Cylinder {
                         center: vec_of(center),
                         axis: vec_of::<D>(axis).normalize(),
                         radius: *radius,
+                        half_length: length.map_or(f64::INFINITY, |l| 0.5 * l),
                     },
                 };
                 ObstacleRule {
@@ -710,5 +733,27 @@ mod tests {
         let (phi, n) = solid.distance_and_normal(&Vector::<2>::new(-0.25, 1.0));
         assert!((phi - 0.25).abs() < 1e-12);
         assert_eq!(n, Vector::<2>::new(-1.0, 0.0));
+    }
+
+    #[test]
+    fn finite_cylinder_distance_to_side_caps_and_rim() {
+        let solid = Solid::<3>::Cylinder {
+            center: Vector::<3>::new(0.0, 0.0, 1.0),
+            axis: Vector::<3>::new(0.0, 0.0, 1.0),
+            radius: 1.0,
+            half_length: 1.0,
+        };
+        // Inside, nearer the side than the caps.
+        let (phi, n) = solid.distance_and_normal(&Vector::<3>::new(0.8, 0.0, 1.0));
+        assert!((phi + 0.2).abs() < 1e-12 && (n - Vector::<3>::new(1.0, 0.0, 0.0)).norm() < 1e-12);
+        // Inside, nearer the lower cap.
+        let (phi, n) = solid.distance_and_normal(&Vector::<3>::new(0.0, 0.0, 0.1));
+        assert!((phi + 0.1).abs() < 1e-12 && (n - Vector::<3>::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+        // Above the upper cap, within the radius.
+        let (phi, n) = solid.distance_and_normal(&Vector::<3>::new(0.5, 0.0, 2.5));
+        assert!((phi - 0.5).abs() < 1e-12 && (n - Vector::<3>::new(0.0, 0.0, 1.0)).norm() < 1e-12);
+        // Beyond the rim: the distance to the circle's edge.
+        let (phi, _) = solid.distance_and_normal(&Vector::<3>::new(1.3, 0.0, 2.4));
+        assert!((phi - 0.5).abs() < 1e-12);
     }
 }

@@ -27,6 +27,9 @@ pub struct MaterialGroup {
     /// The law's declared state fields for this group's particles, one `Vec` per field
     /// (`components` numbers per particle).
     pub state: Vec<Vec<f64>>,
+    /// A solid held in place by incompressible mechanics (`scene::held_bodies`): its
+    /// particles take no part in the transfers or the stress update; physics still acts.
+    pub held: bool,
 }
 
 /// All particles, as parallel arrays indexed by particle.
@@ -77,6 +80,18 @@ impl<const D: usize> Particles<D> {
     /// Whether there are no particles.
     pub fn is_empty(&self) -> bool {
         self.position.is_empty()
+    }
+
+    /// Whether some group is held in place (a solid in incompressible mechanics).
+    #[inline]
+    pub fn any_held(&self) -> bool {
+        self.groups.iter().any(|g| g.held)
+    }
+
+    /// Whether particle `p` belongs to a held group; ask only when [`Self::any_held`].
+    #[inline]
+    pub fn is_held(&self, p: usize) -> bool {
+        self.groups.iter().any(|g| g.held && g.range.contains(&p))
     }
 
     /// Bytes of particle storage actually allocated, material state included.

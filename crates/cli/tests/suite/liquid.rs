@@ -211,7 +211,8 @@ fn incompressible_mechanics_and_liquids_go_together() {
     assert!(
         issues
             .iter()
-            .any(|i| i.starts_with("materials.water.type") && i.contains("liquids only")),
+            .any(|i| i.starts_with("solver.mechanics.incompressible")
+                && i.contains("no body is made of one")),
         "{issues:?}"
     );
     let issues = invalid_example(

@@ -19,6 +19,7 @@ mod enclosed_air;
 mod energy_ledger;
 mod exit_codes;
 mod fuzz;
+mod held_bodies;
 mod hertz;
 mod implicit;
 mod johnson_cook;

@@ -31,6 +31,28 @@ pub struct Body {
     /// symmetry models, where a slip wall on a domain face cuts the shape in half.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub clip_to_domain: bool,
+    /// How a liquid meets this solid body while incompressible mechanics holds it in place
+    /// (a fill stage): stick at 90° without it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held: Option<HeldSurface>,
+}
+
+/// The surface a held solid body shows the liquid (`scene::held_bodies`).
+#[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct HeldSurface {
+    /// Contact condition of the liquid on the body: `stick` (no slip, the default) or
+    /// `slip`.
+    #[serde(default = "stick")]
+    pub condition: super::Contact,
+    /// Static contact angle, degrees, of a liquid with surface tension on the body,
+    /// measured through the liquid; 90° without it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_angle: Option<f64>,
+}
+
+fn stick() -> super::Contact {
+    super::Contact::Stick
 }
 
 fn default_ppc() -> u32 {
@@ -182,6 +204,20 @@ impl Body {
             );
         }
         self.shape.validate(v, &format!("{path}.shape"));
+        if let Some(held) = &self.held {
+            let p = format!("{path}.held");
+            if !matches!(held.condition, super::Contact::Stick | super::Contact::Slip) {
+                v.err(
+                    format!("{p}.condition"),
+                    "a held body meets the liquid with `stick` or `slip`",
+                );
+            }
+            super::domain::validate_contact_angle(
+                v,
+                &format!("{p}.contact_angle"),
+                held.contact_angle,
+            );
+        }
         if let Shape::Inflow(inflow) = &self.shape {
             let h = s.domain.cell_size / f64::from(self.particles_per_cell.clamp(1, 8));
             inflow.validate(v, &format!("{path}.shape.inflow"), s, h);

@@ -12,6 +12,7 @@ mod budget;
 mod contact;
 mod cpdi;
 mod domain;
+pub mod held_bodies;
 mod inflow;
 mod lattice;
 mod loads;
@@ -24,7 +25,7 @@ mod total_lagrangian;
 mod validate;
 mod validator;
 
-pub use body::{Body, InitialVelocity, ParticleFileFormat, Shape};
+pub use body::{Body, HeldSurface, InitialVelocity, ParticleFileFormat, Shape};
 pub use body_particles::{BodyParticles, read_csv_particles};
 pub use budget::{Estimate, Limits, estimate};
 pub use contact::{CohesiveLaw, ContactLaw, ContactPair, ContactSection, MAX_CONTACT_FIELDS};

@@ -52,14 +52,18 @@ pub enum ObstacleShape {
         /// Radius.
         radius: f64,
     },
-    /// Solid infinite cylinder (3D) around an axis through `center`.
+    /// Solid cylinder (3D) around an axis through `center`: infinite, or `length` long
+    /// and centred on `center`.
     Cylinder {
-        /// A point on the axis.
+        /// A point on the axis (the centre of a finite cylinder).
         center: Vec<f64>,
         /// Axis direction.
         axis: Vec<f64>,
         /// Radius.
         radius: f64,
+        /// Length along the axis, centred on `center`; infinite without it.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        length: Option<f64>,
     },
 }
 
@@ -93,10 +97,12 @@ impl ObstacleShape {
                 center,
                 axis,
                 radius,
+                length,
             } => {
-                let length = axis.iter().map(|a| a * a).sum::<f64>().sqrt();
-                let on_axis = along(center, axis) / length;
+                let norm = axis.iter().map(|a| a * a).sum::<f64>().sqrt();
+                let on_axis = along(center, axis) / norm;
                 squared(center) - on_axis * on_axis < radius * radius
+                    && length.is_none_or(|l| on_axis.abs() < 0.5 * l)
             }
         }
     }
@@ -120,8 +126,12 @@ impl Obstacle {
                 center,
                 axis,
                 radius,
+                length,
             } => {
                 let p = format!("{path}.shape.cylinder");
+                if let Some(length) = length {
+                    v.positive(&format!("{p}.length"), *length);
+                }
                 if v.dim != 3 {
                     v.err(
                         &p,
@@ -176,7 +186,16 @@ mod tests {
             center: vec![0.0, 0.0, 0.0],
             axis: vec![0.0, 0.0, 3.0],
             radius: 1.0,
+            length: None,
         };
         assert!(rod.contains(&[0.5, 0.5, 100.0]) && !rod.contains(&[1.0, 0.5, 0.0]));
+        let post = ObstacleShape::Cylinder {
+            center: vec![0.0, 0.0, 1.0],
+            axis: vec![0.0, 0.0, 3.0],
+            radius: 1.0,
+            length: Some(2.0),
+        };
+        assert!(post.contains(&[0.5, 0.5, 1.9]) && !post.contains(&[0.5, 0.5, 2.1]));
+        assert!(post.contains(&[0.5, 0.5, 0.1]) && !post.contains(&[0.5, 0.5, -0.1]));
     }
 }

@@ -147,7 +147,7 @@ pub fn parse_scene_value_limited(
             ),
         );
     }
-    v.particles_outside_obstacles(&scene, &bodies);
+    v.particles_outside_obstacles(&scene, &bodies, &materials);
     v.check_loads(&scene, &bodies);
     if !v.issues.is_empty() {
         return Err(SceneError { issues: v.issues });
@@ -181,13 +181,45 @@ impl Validator {
     /// obstacle (between two plates that dipped into such a pool the liquid rose 1–2.5 mm
     /// where Jurin says 4.1 mm). A body is cut around an obstacle with `holes`. A solid may overlap one on
     /// purpose: a stick box that grips a body and moves it.
-    fn particles_outside_obstacles(&mut self, s: &Scene, bodies: &[BodyParticles]) {
+    /// Held solid bodies (`held_bodies.rs`) are obstacles of their shapes for this check.
+    fn particles_outside_obstacles(
+        &mut self,
+        s: &Scene,
+        bodies: &[BodyParticles],
+        materials: &BTreeMap<String, Arc<dyn Material>>,
+    ) {
         if !matches!(s.solver.mechanics, Mechanics::Incompressible(_)) {
             return;
         }
         let dim = s.dimension as usize;
+        let held: Vec<(String, crate::scene::Obstacle)> = s
+            .bodies
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| {
+                materials
+                    .get(&b.material)
+                    .is_some_and(|m| super::held_bodies::holds(&s.solver.mechanics, m.as_ref()))
+            })
+            .filter_map(|(i, b)| {
+                super::held_bodies::held_obstacle(b).map(|o| (format!("bodies[{i}] (held)"), o))
+            })
+            .collect();
+        let obstacles = s
+            .obstacles
+            .iter()
+            .enumerate()
+            .map(|(k, o)| (format!("obstacles[{k}]"), o))
+            .chain(held.iter().map(|(name, o)| (name.clone(), o)));
+        let obstacles: Vec<_> = obstacles.collect();
         for body in bodies {
-            for (k, obstacle) in s.obstacles.iter().enumerate() {
+            let liquid = materials
+                .get(&s.bodies[body.body].material)
+                .is_some_and(|m| m.liquid_viscosity().is_some());
+            if !liquid {
+                continue;
+            }
+            for (name, obstacle) in &obstacles {
                 let inside = body
                     .positions
                     .chunks_exact(dim)
@@ -196,7 +228,7 @@ impl Validator {
                 if inside > 0 {
                     self.err(
                         format!("bodies[{}]", body.body),
-                        format!("{inside} of its liquid particles lie inside obstacles[{k}] at time 0, which the pressure solve takes for solid; cut the body around it with `holes`"),
+                        format!("{inside} of its liquid particles lie inside {name} at time 0, which the pressure solve takes for solid; cut the body around it with `holes`"),
                     );
                 }
             }
@@ -437,6 +469,18 @@ impl Validator {
                     );
                 }
             }
+            for (i, body) in s.bodies.iter().enumerate() {
+                if body
+                    .held
+                    .as_ref()
+                    .is_some_and(|h| h.contact_angle.is_some())
+                {
+                    self.err(
+                        format!("bodies[{i}].held.contact_angle"),
+                        NO_TENSION_FOR_ANGLE,
+                    );
+                }
+            }
         }
         if let (Some((name, _)), Mechanics::Incompressible(settings)) =
             (tension, &s.solver.mechanics)
@@ -449,17 +493,23 @@ impl Validator {
         }
         for (name, m) in used_materials() {
             let liquid = m.liquid_viscosity().is_some();
-            if incompressible && !liquid {
-                self.err(
-                    format!("materials.{name}.type"),
-                    "incompressible mechanics moves liquids only (a material with a viscosity and no equation of state, e.g. type `liquid`); solids in the same scene are not supported yet",
-                );
-            } else if liquid && !incompressible && s.solver.mechanics != Mechanics::Off {
+            if liquid && !incompressible && s.solver.mechanics != Mechanics::Off {
                 self.err(
                     format!("materials.{name}.type"),
                     "a liquid has no equation of state: its pressure comes from `solver.mechanics: {\"incompressible\": {}}` (with `\"off\"` it stays where it is, as the gap a grid flow physics fills)",
                 );
             }
+        }
+        // Solids in incompressible mechanics are held in place (held_bodies.rs).
+        super::held_bodies::check(self, s, materials);
+        if incompressible
+            && !s.bodies.is_empty()
+            && used_materials().all(|(_, m)| m.liquid_viscosity().is_none())
+        {
+            self.err(
+                "solver.mechanics.incompressible",
+                "incompressible mechanics moves liquids (a material with a viscosity and no equation of state, e.g. type `liquid`), and no body is made of one: solid bodies are only held in place",
+            );
         }
         if matches!(
             s.solver.mechanics,

@@ -7,6 +7,9 @@ use crate::math::Vector;
 use crate::particles::Particles;
 use rayon::prelude::*;
 
+/// The slab mark of a particle held in place: in no bin.
+const HELD: u32 = u32::MAX;
+
 /// Particle indices grouped by the x-slab of their first stencil node. Buffers are
 /// allocated once and reused every step.
 pub(crate) struct SlabBins {
@@ -43,11 +46,18 @@ impl SlabBins {
         let width = self.width;
         let slabs = self.slab_count();
         let (origin, inv_dx) = (grid.origin[0], grid.inv_dx);
+        // Particles held in place (solids in incompressible mechanics) are in no bin, so
+        // the transfers that scatter through the bins leave them out.
+        let any_held = particles.any_held();
         self.slab_of
             .par_iter_mut()
             .zip(particles.position.par_iter())
             .enumerate()
             .for_each(|(p, (slab, x))| {
+                if any_held && particles.is_held(p) {
+                    *slab = HELD;
+                    return;
+                }
                 let half = if K::USES_PARTICLE_SIZE {
                     particles.half_size[p]
                 } else {
@@ -57,14 +67,14 @@ impl SlabBins {
                 *slab = (base / width).min(slabs - 1) as u32;
             });
         self.start.fill(0);
-        for &s in &self.slab_of {
+        for &s in self.slab_of.iter().filter(|&&s| s != HELD) {
             self.start[s as usize + 1] += 1;
         }
         for s in 0..slabs {
             self.start[s + 1] += self.start[s];
         }
         // Fill using `start` as running cursors, then shift it back.
-        for (p, &s) in self.slab_of.iter().enumerate() {
+        for (p, &s) in self.slab_of.iter().enumerate().filter(|(_, s)| **s != HELD) {
             let cursor = &mut self.start[s as usize];
             self.order[*cursor] = p as u32;
             *cursor += 1;

@@ -44,6 +44,9 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
     // XPIC adds the gathered correction v* − vⁿ (`grid.xpic_velocity`) to the PIC velocity.
     let xpic = params.transfer == Transfer::Xpic && params.velocity;
     let store_gradient = !particles.velocity_gradient.is_empty();
+    // Particles held in place (solids in incompressible mechanics) keep their state; they
+    // count in the statistics as they are.
+    let held = particles.any_held().then_some(&particles.groups[..]);
     let Particles {
         position,
         velocity,
@@ -75,6 +78,11 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 // SAFETY: chunks are disjoint particle ranges; each particle is touched by
                 // exactly one task.
                 let (x, v, f) = unsafe { (position.get(p), velocity.get(p), deformation.get(p)) };
+                if held.is_some_and(|groups| groups.iter().any(|g| g.held && g.range.contains(&p)))
+                {
+                    stats.record(p, mass[p], v, x, f, (&params.gravity, loads.map(|l| &l[p])));
+                    continue;
+                }
                 let half = if K::USES_PARTICLE_SIZE {
                     half_size[p]
                 } else {

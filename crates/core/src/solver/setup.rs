@@ -143,6 +143,7 @@ where
                     free_strain_factor,
                     free_strain_across_plane,
                     state: Vec::new(),
+                    held: crate::scene::held_bodies::holds(&s.solver.mechanics, material.as_ref()),
                 });
             }
             for p in 0..count {
@@ -262,7 +263,11 @@ where
             contact.map(|(_, _, laws)| MultiField::new(&grid, flip, K::SPAN, &field_counts, laws));
         grid.set_sparse(s.solver.sparse_grid(contact.is_some()));
         Self {
-            boundaries: Boundaries::new(&s.domain.walls, &s.obstacles, domain_cells),
+            boundaries: Boundaries::new(
+                &s.domain.walls,
+                &crate::scene::held_bodies::obstacles_with_held(s, &v.materials),
+                domain_cells,
+            ),
             grid,
             particles,
             settings,

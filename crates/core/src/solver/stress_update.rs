@@ -320,6 +320,11 @@ impl<const D: usize> Laws<'_, D> {
     {
         let mut total = StressStats::default();
         for (g, group) in groups.iter_mut().enumerate() {
+            if group.held {
+                // Held in place at F = I: no stress, and no history to advance.
+                group_wave_speed[g] = 0.0;
+                continue;
+            }
             let range = group.range.clone();
             let count = range.len();
             let material = group.material.clone();

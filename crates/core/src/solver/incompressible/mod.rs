@@ -266,6 +266,18 @@ impl<const D: usize> Incompressible<D> {
     }
 }
 
+/// The rows of the particles that move: all but those of groups held in place (solids,
+/// `scene::held_bodies`), in row order.
+fn moving_rows<const D: usize>(
+    particles: &crate::particles::Particles<D>,
+) -> impl Iterator<Item = usize> + '_ {
+    particles
+        .groups
+        .iter()
+        .filter(|g| !g.held)
+        .flat_map(|g| g.range.clone())
+}
+
 /// Cell index of a position (clamped into the grid).
 #[inline]
 fn cell_of<const D: usize>(grid: &crate::grid::Grid<D>, x: &Vector<D>) -> (usize, [f64; 3]) {
@@ -307,9 +319,10 @@ where
         sim.g2p(dt, true, true, true);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
         // particle volume stays its reference volume and F cannot degenerate.
-        sim.particles
-            .deformation_gradient
-            .fill(Matrix::<D>::identity());
+        let particles = &mut sim.particles;
+        for group in particles.groups.iter().filter(|g| !g.held) {
+            particles.deformation_gradient[group.range.clone()].fill(Matrix::<D>::identity());
+        }
         inflow::enter(sim, dt);
         outflow::leave(sim);
         sim.advance_physics(dt, true);
@@ -428,7 +441,8 @@ impl<const D: usize> Incompressible<D> {
         self.cell_mass.fill(0.0);
         self.cell_volume.fill(0.0);
         let particles = &sim.particles;
-        for i in 0..particles.len() {
+        // Held solids are no liquid: their cells are solid (`Boundaries::cell_is_solid`).
+        for i in moving_rows(particles) {
             let (c, _) = cell_of(&sim.grid, &particles.position[i]);
             self.cell_mass[c] += particles.mass[i];
             self.cell_volume[c] += particles.volume0[i];

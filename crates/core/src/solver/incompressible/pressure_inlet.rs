@@ -225,9 +225,14 @@ impl PressureDrive {
         let injected = particles.shared.get(INJECTED);
         let [t1, t2] = layout.tangents;
         let second = self.places.len() / self.side;
+        let any_held = particles.any_held();
         for i in 0..particles.len() {
             let v0 = particles.volume0[i];
-            if v0 <= 0.0 || injected.is_some_and(|f| f[i] < 0.5) {
+            // Waiting particles and held solids are no liquid at the face.
+            if v0 <= 0.0
+                || injected.is_some_and(|f| f[i] < 0.5)
+                || (any_held && particles.is_held(i))
+            {
                 continue;
             }
             let x = &particles.position[i];
