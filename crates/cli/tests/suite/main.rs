@@ -30,6 +30,7 @@ mod liquid_voids;
 mod loads;
 mod phase_change;
 mod pressure_inlet;
+mod process_3d;
 mod process_chain;
 mod process_fill_chain;
 mod render;
