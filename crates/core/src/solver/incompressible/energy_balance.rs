@@ -14,8 +14,8 @@
 //!   with A_wet = ∫ c dA over the solid's surface: on a wall the sum over the nodes of its
 //!   plane in front of the other walls, on an obstacle a sum over the nodes near its
 //!   surface with the hat weight max(0, 1 − |depth|) in cells, which integrates a plane
-//!   at any angle. Other bodies look like voids to the colour, so their wetted faces
-//!   count as free surface.
+//!   at any angle. Solid bodies are held obstacles in this mode (`scene::held_bodies`),
+//!   so their wetted faces count as an obstacle's.
 //! - Pumping work: liquid that enters through an inlet is pushed in against the pressure
 //!   there, so it brings p·V with it besides its kinetic and gravity energy (the pressure
 //!   term of the energy flux (½ρ|v|² + ρgz + p) v·n); each entering particle's volume
