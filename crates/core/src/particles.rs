@@ -32,6 +32,13 @@ pub struct MaterialGroup {
     pub held: bool,
 }
 
+/// Whether particle `p` belongs to a held group of `groups` (for passes that hold the
+/// particle arrays apart from the groups).
+#[inline]
+pub fn held_in(groups: &[MaterialGroup], p: usize) -> bool {
+    groups.iter().any(|g| g.held && g.range.contains(&p))
+}
+
 /// All particles, as parallel arrays indexed by particle.
 pub struct Particles<const D: usize> {
     /// Current position.
@@ -91,7 +98,7 @@ impl<const D: usize> Particles<D> {
     /// Whether particle `p` belongs to a held group; ask only when [`Self::any_held`].
     #[inline]
     pub fn is_held(&self, p: usize) -> bool {
-        self.groups.iter().any(|g| g.held && g.range.contains(&p))
+        held_in(&self.groups, p)
     }
 
     /// Bytes of particle storage actually allocated, material state included.

@@ -51,22 +51,34 @@ pub fn held_obstacle(body: &Body) -> Option<Obstacle> {
     })
 }
 
+/// The obstacle of every held body of the scene, with the body's index, in body order.
+pub fn held_obstacles<'a>(
+    scene: &'a Scene,
+    materials: &'a BTreeMap<String, Arc<dyn Material>>,
+) -> impl Iterator<Item = (usize, Obstacle)> + 'a {
+    scene
+        .bodies
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| {
+            materials
+                .get(&b.material)
+                .is_some_and(|m| holds(&scene.solver.mechanics, m.as_ref()))
+        })
+        .filter_map(|(i, b)| held_obstacle(b).map(|o| (i, o)))
+}
+
 /// The scene's obstacles followed by one per held body (in body order): what the grid's
 /// boundaries hold in this scene.
 pub fn obstacles_with_held(
     scene: &Scene,
     materials: &BTreeMap<String, Arc<dyn Material>>,
 ) -> Vec<Obstacle> {
-    let held = scene.bodies.iter().filter(|b| {
-        materials
-            .get(&b.material)
-            .is_some_and(|m| holds(&scene.solver.mechanics, m.as_ref()))
-    });
     scene
         .obstacles
         .iter()
         .cloned()
-        .chain(held.filter_map(held_obstacle))
+        .chain(held_obstacles(scene, materials).map(|(_, o)| o))
         .collect()
 }
 

@@ -192,19 +192,10 @@ impl Validator {
             return;
         }
         let dim = s.dimension as usize;
-        let held: Vec<(String, crate::scene::Obstacle)> = s
-            .bodies
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| {
-                materials
-                    .get(&b.material)
-                    .is_some_and(|m| super::held_bodies::holds(&s.solver.mechanics, m.as_ref()))
-            })
-            .filter_map(|(i, b)| {
-                super::held_bodies::held_obstacle(b).map(|o| (format!("bodies[{i}] (held)"), o))
-            })
-            .collect();
+        let held: Vec<(String, crate::scene::Obstacle)> =
+            super::held_bodies::held_obstacles(s, materials)
+                .map(|(i, o)| (format!("bodies[{i}] (held)"), o))
+                .collect();
         let obstacles = s
             .obstacles
             .iter()

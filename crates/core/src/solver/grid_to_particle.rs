@@ -78,8 +78,7 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 // SAFETY: chunks are disjoint particle ranges; each particle is touched by
                 // exactly one task.
                 let (x, v, f) = unsafe { (position.get(p), velocity.get(p), deformation.get(p)) };
-                if held.is_some_and(|groups| groups.iter().any(|g| g.held && g.range.contains(&p)))
-                {
+                if held.is_some_and(|groups| crate::particles::held_in(groups, p)) {
                     stats.record(p, mass[p], v, x, f, (&params.gravity, loads.map(|l| &l[p])));
                     continue;
                 }
