@@ -52,6 +52,11 @@ pub enum Command {
             conflicts_with = "resume"
         )]
         from: Option<PathBuf>,
+        /// With --from a staged run's store and a staged scene: start at this stage of the
+        /// scene from the state the store's stage before it ended with (its stages before
+        /// this one must be the stored run's; kept when they ran with `output.checkpoint`).
+        #[arg(long, value_name = "NAME", requires = "from")]
+        stage: Option<String>,
         /// Output folder.
         #[arg(long, default_value = "results")]
         out: PathBuf,
@@ -339,12 +344,14 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             scene,
             resume,
             from,
+            stage,
             out,
             set,
             json,
             quiet,
         } => {
             let mut handed_over = None;
+            let mut stage_start = None;
             let (validated, store, scene, checkpoint) = match (scene, resume) {
                 (Some(scene), _) => {
                     let validated = match load_scene(&scene, &set, &registry) {
@@ -366,9 +373,16 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                             );
                             return Ok(ExitStatus::InvalidInput);
                         }
-                        match crate::from_store::load(from, &validated) {
-                            Ok(c) => handed_over = Some(c),
-                            Err(status) => return Ok(status),
+                        let loaded = match &stage {
+                            Some(name) => {
+                                crate::from_store::load_stage(from, &validated, name, &registry)
+                                    .map(|start| stage_start = Some(start))
+                            }
+                            None => crate::from_store::load(from, &validated)
+                                .map(|c| handed_over = Some(c)),
+                        };
+                        if let Err(status) = loaded {
+                            return Ok(status);
                         }
                     }
                     (validated, store, scene, None)
@@ -382,19 +396,26 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 (None, None) => anyhow::bail!("give a scene file or --resume STORE"),
             };
             let mut progress = ProgressReporter::new(quiet || json);
-            let result = match (&checkpoint, &handed_over) {
-                (None, Some(c)) => mpm_core::solver::run_scene_from(
+            let result = match (&checkpoint, &handed_over, &stage_start) {
+                (None, None, Some((index, state))) => mpm_core::solver::run_scene_from_stage(
+                    &validated,
+                    *index,
+                    state,
+                    &mut mpm_io::ZarrSink::new(&store),
+                    &mut progress,
+                ),
+                (None, Some(c), _) => mpm_core::solver::run_scene_from(
                     &validated,
                     c,
                     &mut mpm_io::ZarrSink::new(&store),
                     &mut progress,
                 ),
-                (None, None) => run_scene(
+                (None, None, None) => run_scene(
                     &validated,
                     &mut mpm_io::ZarrSink::new(&store),
                     &mut progress,
                 ),
-                (Some(c), _) => {
+                (Some(c), _, _) => {
                     let frames = c.state("frames").as_u64().unwrap_or(0) as usize;
                     let mut sink = mpm_io::ZarrSink::resume(&store, frames);
                     mpm_core::solver::resume_scene(&validated, c, &mut sink, &mut progress)

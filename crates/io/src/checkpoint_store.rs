@@ -39,14 +39,6 @@ pub(crate) fn write(
 ) -> Result<(), IoError> {
     let step = c.state("step").as_u64().unwrap_or(0);
     let name = format!("checkpoints/{step}");
-    let group_path = format!("/{name}");
-    let mut attrs = serde_json::Map::new();
-    attrs.insert("state".into(), c.state.clone());
-    let names: Vec<&String> = c.arrays.keys().collect();
-    attrs.insert(
-        "arrays".into(),
-        serde_json::to_value(&names).unwrap_or_default(),
-    );
     if !path.join("checkpoints").join("zarr.json").is_file() {
         GroupBuilder::new()
             .build(store.clone(), "/checkpoints")
@@ -54,30 +46,7 @@ pub(crate) fn write(
             .store_metadata()
             .map_err(|e| zerr(path, e))?;
     }
-    let group = GroupBuilder::new()
-        .attributes(attrs)
-        .build(store.clone(), &group_path)
-        .map_err(|e| zerr(path, e))?;
-    group.store_metadata().map_err(|e| zerr(path, e))?;
-    for (array_name, values) in &c.arrays {
-        let n = values.len() as u64;
-        let array = ArrayBuilder::new(
-            vec![n],
-            vec![n.clamp(1, CHUNK)],
-            data_type::float64(),
-            f64::NAN,
-        )
-        .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
-        .dimension_names(Some([array_name.as_str()]))
-        .build(store.clone(), &format!("{group_path}/{array_name}"))
-        .map_err(|e| zerr(path, e))?;
-        array.store_metadata().map_err(|e| zerr(path, e))?;
-        if n > 0 {
-            array
-                .store_array_subset(&array.subset_all(), values.as_slice())
-                .map_err(|e| zerr(path, e))?;
-        }
-    }
+    write_group(store, path, &format!("/{name}"), c)?;
     let pointer = serde_json::json!({
         "path": name,
         "step": step,
@@ -100,6 +69,62 @@ pub(crate) fn write(
         }
     }
     Ok(())
+}
+
+/// Writes `c` as the group `group_path` of the store at `path`: one float64 array per named
+/// array, the structured state in the group's attribute `state`.
+fn write_group(
+    store: &Arc<FilesystemStore>,
+    path: &Path,
+    group_path: &str,
+    c: &Checkpoint,
+) -> Result<(), IoError> {
+    let mut attrs = serde_json::Map::new();
+    attrs.insert("state".into(), c.state.clone());
+    let names: Vec<&String> = c.arrays.keys().collect();
+    attrs.insert(
+        "arrays".into(),
+        serde_json::to_value(&names).unwrap_or_default(),
+    );
+    let group = GroupBuilder::new()
+        .attributes(attrs)
+        .build(store.clone(), group_path)
+        .map_err(|e| zerr(path, e))?;
+    group.store_metadata().map_err(|e| zerr(path, e))?;
+    for (array_name, values) in &c.arrays {
+        let n = values.len() as u64;
+        let array = ArrayBuilder::new(
+            vec![n],
+            vec![n.clamp(1, CHUNK)],
+            data_type::float64(),
+            f64::NAN,
+        )
+        .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
+        .dimension_names(Some([array_name.as_str()]))
+        .build(store.clone(), &format!("{group_path}/{array_name}"))
+        .map_err(|e| zerr(path, e))?;
+        array.store_metadata().map_err(|e| zerr(path, e))?;
+        if n > 0 {
+            array
+                .store_array_subset(&array.subset_all(), values.as_slice())
+                .map_err(|e| zerr(path, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Name of the group, inside a stage's group, that keeps the state the stage ended with.
+pub const STAGE_END: &str = "end_state";
+
+/// Writes `c`, the state a finished stage left, into that stage's group `stage_group`
+/// (`/stages/<index>-<name>`) as `end_state`, so a later run can start at the next stage.
+pub(crate) fn write_stage_end(
+    store: &Arc<FilesystemStore>,
+    path: &Path,
+    stage_group: &str,
+    c: &Checkpoint,
+) -> Result<(), IoError> {
+    write_group(store, path, &format!("{stage_group}/{STAGE_END}"), c)
 }
 
 /// Reads the latest checkpoint of the store at `path`.
@@ -128,7 +153,37 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint, IoError> {
                 format!("the checkpoint attribute {pointer} is damaged"),
             )
         })?;
-    let group = Group::open(store.clone(), &format!("/{name}")).map_err(|e| zerr(path, e))?;
+    read_group(&store, path, &format!("/{name}"))
+}
+
+/// Reads the state a finished stage left: the group `end_state` of the stage group
+/// `/stages/<index>-<name>` of the store at `path` (written only by a stage with
+/// `output.checkpoint`).
+pub fn read_stage_end(path: &Path, index: usize, name: &str) -> Result<Checkpoint, IoError> {
+    if !path.join("zarr.json").is_file() {
+        return Err(layout(path, "not a Zarr v3 store (no zarr.json)"));
+    }
+    let group = format!("stages/{index}-{name}/{STAGE_END}");
+    if !path.join(&group).join("zarr.json").is_file() {
+        return Err(layout(
+            path,
+            format!(
+                "the store keeps no end state of stage {index} `{name}` (the stage did not \
+                 finish, or ran without `output.checkpoint`)"
+            ),
+        ));
+    }
+    let store = Arc::new(FilesystemStore::new(path).map_err(|e| zerr(path, e))?);
+    read_group(&store, path, &format!("/{group}"))
+}
+
+/// Reads the checkpoint kept as the group `name` of the store at `path`.
+fn read_group(
+    store: &Arc<FilesystemStore>,
+    path: &Path,
+    name: &str,
+) -> Result<Checkpoint, IoError> {
+    let group = Group::open(store.clone(), name).map_err(|e| zerr(path, e))?;
     let attrs = group.attributes();
     let state = attrs.get("state").cloned().unwrap_or_default();
     let names: Vec<String> = attrs
@@ -146,7 +201,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint, IoError> {
                 format!("{name}: bad array name `{array_name}`"),
             ));
         }
-        let array = Array::open(store.clone(), &format!("/{name}/{array_name}"))
+        let array = Array::open(store.clone(), &format!("{name}/{array_name}"))
             .map_err(|e| zerr(path, e))?;
         let values = if array.shape().first().copied().unwrap_or(0) == 0 {
             Vec::new()

@@ -10,7 +10,9 @@
 //! - `tables/<name>`: float64 `[row, column]`, one chunk, attribute `columns` (tables the
 //!   physics operators kept, such as voids; the group exists only when there are tables)
 //! - `stages/<index>-<name>/...`: in a staged run, each stage's `time`, `particles`,
-//!   `diagnostics`, `tables` (instead of the root's), its scene and metrics as attributes
+//!   `diagnostics`, `tables` (instead of the root's), its scene and metrics as attributes;
+//!   with `output.checkpoint`, also `end_state/<array>`, the state the stage finished with
+//!   (a checkpoint's layout), from which `mpm run SCENE --from STORE --stage NEXT` starts
 //! - `checkpoints/<step>/<array>`: float64 `[index]`, the latest checkpoint (only with
 //!   `output.checkpoint`), its structured state in the group attribute `state`
 //! - root attributes: `scene`, `mpm_version`, `dimension`, `particles`, `metrics`,
@@ -21,7 +23,7 @@ mod vtk;
 mod zarr_reader;
 mod zarr_writer;
 
-pub use checkpoint_store::read_checkpoint;
+pub use checkpoint_store::{STAGE_END, read_checkpoint, read_stage_end};
 pub use vtk::export_vtk;
 pub use zarr_reader::{ResultStore, TableData, read_particles};
 pub use zarr_writer::ZarrSink;

@@ -305,6 +305,16 @@ impl OutputSink for ZarrSink {
         crate::checkpoint_store::write(store, root, &self.path, checkpoint).map_err(out)
     }
 
+    fn write_stage_end(
+        &mut self,
+        state: &mpm_core::checkpoint::Checkpoint,
+    ) -> Result<(), OutputError> {
+        let (Some(store), Some((group, _))) = (self.store.as_ref(), self.stage.as_ref()) else {
+            return Ok(());
+        };
+        crate::checkpoint_store::write_stage_end(store, &self.path, group, state).map_err(out)
+    }
+
     fn write_frame(&mut self, frame: &Frame<'_>) -> Result<(), OutputError> {
         self.append(frame).map_err(out)
     }

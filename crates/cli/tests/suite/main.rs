@@ -37,6 +37,7 @@ mod render;
 mod resume;
 mod rom;
 mod run_from;
+mod run_from_stage;
 mod service;
 mod service_access;
 mod service_postgres;

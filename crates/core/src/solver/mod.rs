@@ -213,7 +213,7 @@ pub fn run_scene(
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
     if !scene.stages.is_empty() {
-        return stages::run_stages(scene, sink, observer, None);
+        return stages::run_stages(scene, sink, observer, stages::StagedStart::First);
     }
     dispatch(
         scene,
@@ -234,7 +234,12 @@ pub fn resume_scene(
     observer: &mut dyn RunObserver,
 ) -> Result<Metrics, RunError> {
     if !scene.stages.is_empty() {
-        return stages::run_stages(scene, sink, observer, Some(checkpoint));
+        return stages::run_stages(
+            scene,
+            sink,
+            observer,
+            stages::StagedStart::Resume(checkpoint),
+        );
     }
     dispatch(
         scene,
@@ -259,9 +264,10 @@ pub fn run_scene_from(
     if !scene.stages.is_empty() {
         return Err(RunError::Refused {
             path: "stages".into(),
-            message: "a staged scene starts from its own first stage, not from another run's \
-                      state: run its stages one by one, or continue the other run's scene with \
-                      stages"
+            message: "a staged scene starts from its own first stage, or at a later stage from \
+                      the end of the stage before it in a staged run's store \
+                      (`run_scene_from_stage`, `mpm run SCENE --from STORE --stage NAME`); \
+                      not from an unstaged run's state"
                 .into(),
         });
     }
@@ -272,6 +278,27 @@ pub fn run_scene_from(
             observer,
             from: RunFrom::TakeOver(handed_over),
         },
+    )
+}
+
+/// Runs a staged `scene` from its stage `index` on, from `stage_end`: the state its stage
+/// `index - 1` ended with in another run whose stages before `index` were the same
+/// (`mpm run SCENE --from STORE --stage NAME`, which checks that; the store's
+/// `stages/<i>-<name>/end_state`). Stage `index` takes it over as it would in one run, its
+/// `remove` and `convert` rules included, so with nothing changed the frames from stage
+/// `index` on are the other run's bit for bit. The metrics list the earlier stages too.
+pub fn run_scene_from_stage(
+    scene: &ValidatedScene,
+    index: usize,
+    stage_end: &crate::checkpoint::Checkpoint,
+    sink: &mut dyn OutputSink,
+    observer: &mut dyn RunObserver,
+) -> Result<Metrics, RunError> {
+    stages::run_stages(
+        scene,
+        sink,
+        observer,
+        stages::StagedStart::AtStage(index, stage_end),
     )
 }
 

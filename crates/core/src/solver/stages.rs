@@ -17,16 +17,32 @@ use crate::scene::ValidatedScene;
 use crate::stress_measures::{averaged_peak_von_mises, peak_von_mises};
 use std::collections::BTreeMap;
 
-/// Runs every stage of `scene` in order into `sink` (from `resume`, a checkpoint written
-/// in one of its stages, when given); stops after a stage that did not finish. Returns the
-/// whole run's metrics: the last stage's figures, wall time and steps over all stages,
-/// and `stages` with each stage's summary.
+/// Where a staged run starts.
+#[derive(Clone, Copy)]
+pub(super) enum StagedStart<'a> {
+    /// The first stage, from the scene's initial state.
+    First,
+    /// Within the stage a checkpoint of this run was written in (`mpm run --resume`).
+    Resume(&'a Checkpoint),
+    /// At stage `index`, from the state the stage before it ended with in another run of
+    /// the same earlier stages (`mpm run SCENE --from STORE --stage NAME`).
+    AtStage(usize, &'a Checkpoint),
+}
+
+/// Runs the stages of `scene` in order into `sink` from `start`; stops after a stage that
+/// did not finish. Returns the whole run's metrics: the last stage's figures, wall time and
+/// steps over all stages, and `stages` with each stage's summary. A stage with
+/// `output.checkpoint` that finishes hands the sink its end state (`write_stage_end`).
 pub(super) fn run_stages(
     scene: &ValidatedScene,
     sink: &mut dyn OutputSink,
     observer: &mut dyn RunObserver,
-    resume: Option<&Checkpoint>,
+    start: StagedStart<'_>,
 ) -> Result<Metrics, RunError> {
+    let resume = match start {
+        StagedStart::Resume(c) => Some(c),
+        _ => None,
+    };
     struct Stage<'a> {
         sink: &'a mut dyn OutputSink,
         observer: &'a mut dyn RunObserver,
@@ -58,16 +74,24 @@ pub(super) fn run_stages(
             Ok((metrics, end, figures))
         }
     }
-    let (first, mut summaries) = match resume {
-        None => (0, Vec::new()),
-        Some(c) => resumed_stage(c, scene.stages.len())?,
+    let (first, mut summaries, mut handed_over) = match start {
+        StagedStart::First => (0, Vec::new(), None),
+        StagedStart::Resume(c) => {
+            let (index, summaries) = resumed_stage(c, scene.stages.len())?;
+            (index, summaries, Some(c.clone()))
+        }
+        StagedStart::AtStage(index, c) => {
+            let summaries = stage_end_summaries(c, index, scene.stages.len())?;
+            (index, summaries, Some(c.clone()))
+        }
     };
-    let mut handed_over: Option<Checkpoint> = resume.cloned();
     // Particles removed at hand-overs so far (original indices, sorted); a checkpoint of a
-    // staged run keeps them in its stage tag.
-    let mut removed: Vec<u32> = match resume {
-        Some(c) => serde_json::from_value(c.state("stage")["removed"].clone()).unwrap_or_default(),
-        None => Vec::new(),
+    // staged run, and a stage's end state, keep them in its stage tag.
+    let mut removed: Vec<u32> = match start {
+        StagedStart::Resume(c) | StagedStart::AtStage(_, c) => {
+            serde_json::from_value(c.state("stage")["removed"].clone()).unwrap_or_default()
+        }
+        StagedStart::First => Vec::new(),
     };
     let mut last = Metrics::default();
     // The stage clock of every stage run by this process, summed.
@@ -166,6 +190,20 @@ pub(super) fn run_stages(
             *stage_seconds.entry(stage.clone()).or_insert(0.0) += seconds;
         }
         let finished = metrics.outcome == Some(Outcome::Finished);
+        let mut end = end;
+        if finished && stage_scene.scene.output.checkpoint.is_some() {
+            // What a run starting at the next stage needs beside the particles: the stage
+            // summaries so far and the particles removed so far.
+            end.set_state(
+                "stage",
+                serde_json::json!({
+                    "index": index,
+                    "summaries": summaries,
+                    "removed": removed,
+                }),
+            );
+            sink.write_stage_end(&end)?;
+        }
         last = metrics;
         handed_over = Some(end);
         if !finished {
@@ -220,4 +258,39 @@ fn resumed_stage(c: &Checkpoint, stages: usize) -> Result<(usize, Vec<StageSumma
         )));
     }
     Ok((index, summaries))
+}
+
+/// The summaries of the stages before `index` that a stage's end state keeps (written at
+/// the end of stage `index - 1`), checked against the scene's `stages` stages.
+fn stage_end_summaries(
+    c: &Checkpoint,
+    index: usize,
+    stages: usize,
+) -> Result<Vec<StageSummary>, RunError> {
+    let refuse = |message: String| RunError::Refused {
+        path: "stages".into(),
+        message,
+    };
+    if index == 0 || index >= stages {
+        return Err(refuse(format!(
+            "a run starts from another run's stage at stage 1 to {} of this scene, not {index}",
+            stages.saturating_sub(1)
+        )));
+    }
+    let tag = c.state("stage");
+    if tag["index"].as_u64() != Some(index as u64 - 1) {
+        return Err(refuse(format!(
+            "the state handed over is not the end of stage {} ({tag})",
+            index - 1
+        )));
+    }
+    let summaries: Vec<StageSummary> = serde_json::from_value(tag["summaries"].clone())
+        .map_err(|e| refuse(format!("the end state's stage summaries: {e}")))?;
+    if summaries.len() != index {
+        return Err(refuse(format!(
+            "the end state has {} stage summaries, not the {index} before stage {index}",
+            summaries.len()
+        )));
+    }
+    Ok(summaries)
 }
