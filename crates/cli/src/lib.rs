@@ -15,6 +15,8 @@ mod progress;
 mod render;
 mod resume;
 pub mod rom;
+mod rom_design;
+mod rom_study_plot;
 mod scene_file;
 mod schema;
 mod service_cmd;

@@ -48,6 +48,22 @@ pub fn apply_override(scene: &mut Value, assignment: &str) -> anyhow::Result<()>
     Ok(())
 }
 
+/// The value at `path` (the `--set` form) in a scene document, if there is one.
+pub fn value_at<'a>(scene: &'a Value, path: &str) -> anyhow::Result<Option<&'a Value>> {
+    let mut target = scene;
+    for seg in split_path(path)? {
+        let next = match &seg {
+            Segment::Key(k) => target.get(k),
+            Segment::Index(i) => target.get(*i),
+        };
+        match next {
+            Some(v) => target = v,
+            None => return Ok(None),
+        }
+    }
+    Ok(Some(target))
+}
+
 enum Segment {
     Key(String),
     Index(usize),

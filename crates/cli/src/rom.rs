@@ -15,7 +15,6 @@ use mpm_rom::model::TrainOptions;
 use mpm_rom::neural::NeuralOptions;
 use mpm_rom::reduced_run::{RunOptions, run_reduced};
 use mpm_rom::{Model, ModelKind, RomError};
-use plotters::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -168,6 +167,10 @@ pub enum RomCommand {
     /// tabulate and plot position error against wall time per simulated second, with the
     /// full-order run's time as a line.
     Study(StudyArgs),
+    /// Draw a parametric training set by Latin hypercubes: training and held-out points
+    /// over the ranges of `--vary`, written as scenes (and run with --run) for `mpm rom
+    /// train --runs DIR/train` and `mpm rom study --full DIR/test`.
+    Design(crate::rom_design::DesignArgs),
 }
 
 /// Exit status of a reduced-model failure: bad input for models, scenes and options.
@@ -304,6 +307,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
             Ok(ExitStatus::Success)
         }
         RomCommand::Study(args) => study(&args, registry),
+        RomCommand::Design(args) => crate::rom_design::design(&args, registry),
     }
 }
 
@@ -360,11 +364,14 @@ fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow
 /// Settings of `mpm rom study`.
 #[derive(Debug, clap::Args)]
 pub struct StudyArgs {
-    /// Scene file at the held-out parameters.
-    scene: PathBuf,
-    /// Full-order run of the same scene (the reference and the time to beat).
-    #[arg(long)]
-    full: PathBuf,
+    /// Scene file at the held-out parameters, with one `--full`; without it, each held-out
+    /// reduced run runs the scene its full-order store holds (with `--set`).
+    scene: Option<PathBuf>,
+    /// Full-order runs at held-out parameters (stores, or folders of them, e.g. `mpm rom
+    /// design`'s `test`): the references and the time to beat. Errors and times are summed
+    /// over them.
+    #[arg(long, required = true, num_args = 1..)]
+    full: Vec<PathBuf>,
     /// Training stores or folders of them (not including `--full`).
     #[arg(long, required = true, num_args = 1..)]
     runs: Vec<PathBuf>,
@@ -412,28 +419,98 @@ pub struct RomRow {
     pub outcome: String,
 }
 
+/// A held-out run of a study: the full-order store and the scene its reduced runs run.
+struct HeldOut {
+    store: PathBuf,
+    scene: mpm_core::scene::ValidatedScene,
+}
+
+/// The held-out runs of `mpm rom study`, each with its scene; on failure the exit status.
+fn held_out_runs(args: &StudyArgs, registry: &Registry) -> Result<Vec<HeldOut>, ExitStatus> {
+    let stores = mpm_rom::snapshots::find_stores(&args.full).map_err(|e| {
+        eprintln!("error: --full: {e}");
+        ExitStatus::InvalidInput
+    })?;
+    if let Some(scene) = &args.scene {
+        if stores.len() > 1 {
+            eprintln!(
+                "error: {}: give the scene with one --full only; with {} held-out runs each \
+                 reduced run runs the scene its store holds (leave the scene out)",
+                scene.display(),
+                stores.len()
+            );
+            return Err(ExitStatus::InvalidInput);
+        }
+        let scene = load(scene, &args.set, registry)?;
+        return Ok(vec![HeldOut {
+            store: stores[0].clone(),
+            scene,
+        }]);
+    }
+    let mut out = Vec::new();
+    for store in stores {
+        let fail = |message: String| {
+            eprintln!("error: {}: {message}", store.display());
+            ExitStatus::InvalidInput
+        };
+        let opened = mpm_io::ResultStore::open(&store).map_err(|e| fail(e.to_string()))?;
+        let mut json = opened
+            .attributes()
+            .get("scene")
+            .cloned()
+            .ok_or_else(|| fail("the store holds no scene".into()))?;
+        for o in &args.set {
+            crate::overrides::apply_override(&mut json, o)
+                .map_err(|e| fail(format!("--set: {e:#}")))?;
+        }
+        let scene = mpm_core::scene::parse_scene_value(json, registry, Path::new("."))
+            .map_err(|e| fail(format!("its scene: {e}")))?;
+        out.push(HeldOut { store, scene });
+    }
+    Ok(out)
+}
+
 fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
-    let validated = match load(&args.scene, &args.set, registry) {
-        Ok(v) => v,
+    let held_out = match held_out_runs(args, registry) {
+        Ok(h) => h,
         Err(s) => return Ok(s),
     };
-    let full = mpm_io::ResultStore::open(&args.full)
-        .with_context(|| format!("opening the full-order run {}", args.full.display()))?;
-    let full_metrics = full.attributes().get("metrics").ok_or_else(|| {
-        anyhow!(
-            "{} has no metrics (did the run finish?)",
-            args.full.display()
-        )
-    })?;
-    let full_wall = full_metrics["wall_seconds"].as_f64().unwrap_or(f64::NAN);
-    let full_time = full_metrics["simulated_time"].as_f64().unwrap_or(f64::NAN);
+    let (mut full_wall, mut full_time) = (0.0, 0.0);
+    for h in &held_out {
+        let full = mpm_io::ResultStore::open(&h.store)
+            .with_context(|| format!("opening the full-order run {}", h.store.display()))?;
+        let metrics = full
+            .attributes()
+            .get("metrics")
+            .ok_or_else(|| anyhow!("{} has no metrics (did the run finish?)", h.store.display()))?;
+        full_wall += metrics["wall_seconds"].as_f64().unwrap_or(f64::NAN);
+        full_time += metrics["simulated_time"].as_f64().unwrap_or(f64::NAN);
+    }
     let full_rate = full_wall / full_time;
+    // The name the held-out scenes share (`mpm rom design` names them <scene>-test-<k>).
+    let names: Vec<&str> = held_out
+        .iter()
+        .map(|h| h.scene.scene.name.as_str())
+        .collect();
+    let common = names.iter().skip(1).fold(names[0].len(), |n, other| {
+        names[0]
+            .bytes()
+            .zip(other.bytes())
+            .take(n)
+            .take_while(|(a, b)| a == b)
+            .count()
+    });
+    let title_name = match names[0][..common].trim_end_matches(['-', '_']) {
+        "" => names[0].to_string(),
+        shared => shared.to_string(),
+    };
     let dir = args.out.clone().unwrap_or_else(|| {
         let stem = args
             .scene
-            .file_stem()
+            .as_ref()
+            .and_then(|s| s.file_stem())
             .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "scene".into());
+            .unwrap_or_else(|| title_name.clone());
         PathBuf::from("results").join(format!("{stem}-rom-study"))
     });
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -455,40 +532,14 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
         }
         for &samples in &args.samples {
             let options = args.step.options(samples);
-            let store = dir.join(format!("latent{latent}-samples{samples}.zarr"));
-            let row = match run_one(&validated, &model, &options, &store, true) {
-                Ok(m) => {
-                    let error = position_error(&store, &args.full).ok();
-                    let rate = m.wall_seconds / m.simulated_time.max(1e-300);
-                    RomRow {
-                        latent,
-                        samples,
-                        wall_seconds: m.wall_seconds,
-                        wall_per_simulated_second: rate,
-                        speedup: full_rate / rate,
-                        error: error.map(|e| e.relative),
-                        error_to_displacement: error.map(|e| e.relative_to_displacement),
-                        quadrature_points: m
-                            .physics
-                            .get("rom.quadrature_points")
-                            .copied()
-                            .unwrap_or(0.0),
-                        outcome: format!("{:?}", m.outcome.unwrap_or(Outcome::Finished))
-                            .to_lowercase(),
-                    }
-                }
-                Err(e) => RomRow {
-                    latent,
-                    samples,
-                    wall_seconds: f64::NAN,
-                    wall_per_simulated_second: f64::NAN,
-                    speedup: f64::NAN,
-                    error: None,
-                    error_to_displacement: None,
-                    quadrature_points: 0.0,
-                    outcome: format!("failed: {e}"),
-                },
-            };
+            let row = study_row(
+                &held_out,
+                &model,
+                &options,
+                &dir,
+                (latent, samples),
+                full_rate,
+            );
             outln!(
                 "latent {:>3}  samples {:>5}  {:>9.3} s/sim-s  speed-up {:>7.2}  error {:>10}  \
                  (to displacement {:>10})  {}",
@@ -503,14 +554,18 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
             rows.push(row);
         }
     }
-    outln!("full-order run: {full_rate:.3} s per simulated second")?;
-    write_study(&dir, &rows, full_rate)?;
-    draw_study(
+    outln!(
+        "full-order run{}: {full_rate:.3} s per simulated second",
+        if held_out.len() > 1 {
+            format!("s ({} held out, errors summed over them)", held_out.len())
+        } else {
+            String::new()
+        }
+    )?;
+    write_study(&dir, &rows, full_rate, held_out.len())?;
+    crate::rom_study_plot::draw_study(
         &dir.join("rom-study.png"),
-        &format!(
-            "{}: reduced-order error against wall time",
-            validated.scene.name
-        ),
+        &format!("{title_name}: reduced-order error against wall time"),
         &rows,
         full_rate,
     )?;
@@ -521,11 +576,76 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
     Ok(ExitStatus::Success)
 }
 
+/// Runs the model at every held-out run's parameters and sums the errors and times.
+fn study_row(
+    held_out: &[HeldOut],
+    model: &Model,
+    options: &RunOptions,
+    dir: &Path,
+    (latent, samples): (usize, usize),
+    full_rate: f64,
+) -> RomRow {
+    let (mut wall, mut simulated, mut quadrature) = (0.0, 0.0, 0.0);
+    let mut errors = Vec::new();
+    let mut outcome = String::from("finished");
+    for h in held_out {
+        let store = match held_out.len() {
+            1 => dir.join(format!("latent{latent}-samples{samples}.zarr")),
+            _ => dir.join(format!(
+                "latent{latent}-samples{samples}-{}.zarr",
+                h.scene.scene.name
+            )),
+        };
+        match run_one(&h.scene, model, options, &store, true) {
+            Ok(m) => {
+                wall += m.wall_seconds;
+                simulated += m.simulated_time;
+                quadrature += m
+                    .physics
+                    .get("rom.quadrature_points")
+                    .copied()
+                    .unwrap_or(0.0)
+                    / held_out.len() as f64;
+                if m.outcome != Some(Outcome::Finished) {
+                    outcome =
+                        format!("{:?}", m.outcome.unwrap_or(Outcome::Finished)).to_lowercase();
+                }
+                match position_error(&store, &h.store) {
+                    Ok(e) => errors.push(e),
+                    Err(e) => outcome = format!("failed: {e}"),
+                }
+            }
+            Err(e) => {
+                outcome = format!("failed: {e}");
+                break;
+            }
+        }
+    }
+    let complete = errors.len() == held_out.len();
+    let error = complete.then(|| PositionError::summed(&errors));
+    let rate = if outcome.starts_with("failed") {
+        f64::NAN
+    } else {
+        wall / simulated.max(1e-300)
+    };
+    RomRow {
+        latent,
+        samples,
+        wall_seconds: if rate.is_nan() { f64::NAN } else { wall },
+        wall_per_simulated_second: rate,
+        speedup: full_rate / rate,
+        error: error.map(|e| e.relative),
+        error_to_displacement: error.map(|e| e.relative_to_displacement),
+        quadrature_points: quadrature,
+        outcome,
+    }
+}
+
 fn fmt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |v| format!("{v:.3e}"))
 }
 
-fn write_study(dir: &Path, rows: &[RomRow], full_rate: f64) -> anyhow::Result<()> {
+fn write_study(dir: &Path, rows: &[RomRow], full_rate: f64, held_out: usize) -> anyhow::Result<()> {
     let mut csv = String::from(
         "latent,samples,wall_seconds,wall_per_simulated_second,speedup,error,\
          error_to_displacement,quadrature_points,outcome\n",
@@ -548,103 +668,12 @@ fn write_study(dir: &Path, rows: &[RomRow], full_rate: f64) -> anyhow::Result<()
     std::fs::write(dir.join("rom-study.csv"), csv)?;
     let json = serde_json::json!({
         "full_order_wall_per_simulated_second": full_rate,
+        "held_out_runs": held_out,
         "rows": rows,
     });
     std::fs::write(
         dir.join("rom-study.json"),
         serde_json::to_string_pretty(&json)?,
     )?;
-    Ok(())
-}
-
-fn err<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> anyhow::Error {
-    anyhow!("{e}")
-}
-
-/// Error (log) against wall time per simulated second (log), one line per latent size, the
-/// full-order run as a vertical line.
-pub fn draw_study(png: &Path, title: &str, rows: &[RomRow], full_rate: f64) -> anyhow::Result<()> {
-    crate::plot::register_font();
-    let root = BitMapBackend::new(png, (1000, 650)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let points: Vec<(f64, f64)> = rows
-        .iter()
-        .filter_map(|r| Some((r.wall_per_simulated_second, r.error?)))
-        .filter(|(w, e)| *w > 0.0 && *e > 0.0 && w.is_finite())
-        .collect();
-    let (mut xmin, mut xmax) = (full_rate, full_rate);
-    let (mut ymin, mut ymax) = (f64::MAX, f64::MIN);
-    for (x, y) in &points {
-        xmin = xmin.min(*x);
-        xmax = xmax.max(*x);
-        ymin = ymin.min(*y);
-        ymax = ymax.max(*y);
-    }
-    if points.is_empty() {
-        ymin = 1e-3;
-        ymax = 1e-1;
-    }
-    let mut chart = crate::plot::log_log_chart(
-        &root,
-        title,
-        (xmin, xmax),
-        (ymin, ymax),
-        "wall time per simulated second, s",
-        "relative L2 position error vs full order",
-    )?;
-    let mut latents: Vec<usize> = rows.iter().map(|r| r.latent).collect();
-    latents.dedup();
-    for (i, latent) in latents.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let mut pts: Vec<(f64, f64, usize)> = rows
-            .iter()
-            .filter(|r| r.latent == *latent)
-            .filter_map(|r| Some((r.wall_per_simulated_second, r.error?, r.samples)))
-            .filter(|(w, e, _)| *w > 0.0 && *e > 0.0 && w.is_finite())
-            .collect();
-        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-        chart
-            .draw_series(LineSeries::new(
-                pts.iter().map(|p| (p.0, p.1)),
-                color.stroke_width(2),
-            ))
-            .map_err(err)?
-            .label(format!("reduced, latent {latent}"))
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(
-                pts.iter()
-                    .map(|p| Circle::new((p.0, p.1), 4, color.filled())),
-            )
-            .map_err(err)?;
-        chart
-            .draw_series(pts.iter().map(|p| {
-                Text::new(
-                    format!("N={}", p.2),
-                    (p.0, p.1),
-                    ("sans-serif", 12).into_font(),
-                )
-            }))
-            .map_err(err)?;
-    }
-    chart
-        .draw_series(LineSeries::new(
-            vec![(full_rate, ymin / 2.0), (full_rate, ymax * 2.0)],
-            BLACK.stroke_width(2),
-        ))
-        .map_err(err)?
-        .label(format!("full order: {full_rate:.3} s per simulated second"))
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .label_font(("sans-serif", 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
     Ok(())
 }

@@ -21,6 +21,36 @@ pub struct PositionError {
     pub frames: usize,
     /// Particles compared.
     pub particles: usize,
+    /// Σ |x − x_ref|², m² (the sums behind both measures, so runs can be summed).
+    pub misfit_squared: f64,
+    /// Σ |x_ref|², m².
+    pub position_squared: f64,
+    /// Σ |x_ref − X|², m².
+    pub displacement_squared: f64,
+}
+
+impl PositionError {
+    /// Both measures over several runs together (each sum over every run's frames and
+    /// particles, as the paper sums its errors over the held-out parameters); the largest
+    /// distance of any; frames and particles added up.
+    pub fn summed(errors: &[PositionError]) -> PositionError {
+        let sum = |f: fn(&PositionError) -> f64| errors.iter().map(f).sum::<f64>();
+        let (misfit, position, displacement) = (
+            sum(|e| e.misfit_squared),
+            sum(|e| e.position_squared),
+            sum(|e| e.displacement_squared),
+        );
+        PositionError {
+            relative: (misfit / position.max(1e-300)).sqrt(),
+            relative_to_displacement: (misfit / displacement.max(1e-300)).sqrt(),
+            max_distance: errors.iter().map(|e| e.max_distance).fold(0.0, f64::max),
+            frames: errors.iter().map(|e| e.frames).sum(),
+            particles: errors.iter().map(|e| e.particles).sum(),
+            misfit_squared: misfit,
+            position_squared: position,
+            displacement_squared: displacement,
+        }
+    }
 }
 
 fn mismatch(message: String) -> RomError {
@@ -108,5 +138,37 @@ pub fn position_error(run: &Path, reference: &Path) -> Result<PositionError, Rom
         max_distance,
         frames: ta.len(),
         particles: first.len() / dim,
+        misfit_squared: err2,
+        position_squared: pos2,
+        displacement_squared: disp2,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn error(misfit: f64, position: f64, displacement: f64) -> PositionError {
+        PositionError {
+            relative: (misfit / position).sqrt(),
+            relative_to_displacement: (misfit / displacement).sqrt(),
+            max_distance: misfit.sqrt(),
+            frames: 3,
+            particles: 10,
+            misfit_squared: misfit,
+            position_squared: position,
+            displacement_squared: displacement,
+        }
+    }
+
+    #[test]
+    fn summed_errors_weigh_each_run_by_its_sums() {
+        let total = PositionError::summed(&[error(1.0, 100.0, 4.0), error(3.0, 300.0, 12.0)]);
+        assert!((total.relative - 0.1).abs() < 1e-15);
+        assert!((total.relative_to_displacement - 0.5).abs() < 1e-15);
+        assert_eq!(total.max_distance, 3.0f64.sqrt());
+        assert_eq!((total.frames, total.particles), (6, 20));
+        let one = error(1.0, 100.0, 4.0);
+        assert_eq!(PositionError::summed(&[one]).relative, one.relative);
+    }
 }

@@ -36,6 +36,7 @@ mod process_fill_chain;
 mod render;
 mod resume;
 mod rom;
+mod rom_design;
 mod run_from;
 mod run_from_stage;
 mod service;
