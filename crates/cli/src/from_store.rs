@@ -37,20 +37,11 @@ pub(crate) fn load(store: &Path, scene: &ValidatedScene) -> Result<Checkpoint, E
                 .into(),
         ));
     }
-    for key in FIXED_ACROSS_STAGES
-        .iter()
-        .filter(|k| !matches!(**k, "name" | "stages"))
-    {
-        let (before, now) = (
-            stored.get(*key).unwrap_or(&serde_json::Value::Null),
-            scene.json.get(*key).unwrap_or(&serde_json::Value::Null),
-        );
-        if before != now {
-            return Err(fail(format!(
-                "`{key}` differs from the stored scene's: a run taken over must have the same \
-                 dimension, domain, materials, bodies, contact and loads (what stages share)"
-            )));
-        }
+    if let Some(key) = shared_key_that_differs(&stored, &scene.json) {
+        return Err(fail(format!(
+            "`{key}` differs from the stored scene's: a run taken over must have the same \
+             dimension, domain, materials, bodies, contact and loads (what stages share)"
+        )));
     }
     let checkpoint = mpm_io::read_checkpoint(store).map_err(|e| fail(e.to_string()))?;
     let time = checkpoint.state("time").as_f64().unwrap_or(f64::NAN);
@@ -111,20 +102,11 @@ pub(crate) fn load_stage(
             stored.stages.len()
         )));
     }
-    for key in FIXED_ACROSS_STAGES
-        .iter()
-        .filter(|k| !matches!(**k, "name" | "stages"))
-    {
-        let (before, now) = (
-            stored_json.get(*key).unwrap_or(&serde_json::Value::Null),
-            scene.json.get(*key).unwrap_or(&serde_json::Value::Null),
-        );
-        if before != now {
-            return Err(fail(format!(
-                "`{key}` differs from the stored scene's (stages share the dimension, domain, \
-                 materials, bodies, contact and loads)"
-            )));
-        }
+    if let Some(key) = shared_key_that_differs(&stored_json, &scene.json) {
+        return Err(fail(format!(
+            "`{key}` differs from the stored scene's (stages share the dimension, domain, \
+             materials, bodies, contact and loads)"
+        )));
     }
     let raw_stage = |json: &serde_json::Value, i: usize, key: &str| {
         json.pointer(&format!("/stages/{i}/{key}"))
@@ -170,6 +152,20 @@ pub(crate) fn load_stage(
         )));
     }
     Ok((index, state))
+}
+
+/// The first of the keys stages share (`FIXED_ACROSS_STAGES` but name and stages) in which
+/// a stored scene and a new one differ.
+fn shared_key_that_differs(
+    stored: &serde_json::Value,
+    scene: &serde_json::Value,
+) -> Option<&'static str> {
+    let null = serde_json::Value::Null;
+    FIXED_ACROSS_STAGES
+        .iter()
+        .filter(|k| !matches!(**k, "name" | "stages"))
+        .find(|k| stored.get(**k).unwrap_or(&null) != scene.get(**k).unwrap_or(&null))
+        .copied()
 }
 
 /// The first top-level key (but `name`) in which two stage scenes differ.
