@@ -9,6 +9,9 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
+/// One of the study's error measures, read from a row.
+type Measure = fn(&RomRow) -> Option<f64>;
+
 fn err<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> anyhow::Error {
     anyhow!("{e}")
 }
@@ -32,7 +35,7 @@ pub fn draw_study(png: &Path, title: &str, rows: &[RomRow], full_rate: f64) -> a
     root.fill(&WHITE).map_err(err)?;
     let root = root.titled(title, ("sans-serif", 24)).map_err(err)?;
     let panels = root.split_evenly((1, 2));
-    let measures: [(&str, fn(&RomRow) -> Option<f64>); 2] = [
+    let measures: [(&str, Measure); 2] = [
         ("relative L2 position error (the paper's)", |r| r.error),
         ("error relative to the displacement", |r| {
             r.error_to_displacement
@@ -50,7 +53,7 @@ fn draw_panel<DB: DrawingBackend>(
     rows: &[RomRow],
     full_rate: f64,
     y_desc: &str,
-    measure: fn(&RomRow) -> Option<f64>,
+    measure: Measure,
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
