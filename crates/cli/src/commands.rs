@@ -54,7 +54,8 @@ pub enum Command {
         from: Option<PathBuf>,
         /// With --from a staged run's store and a staged scene: start at this stage of the
         /// scene from the state the store's stage before it ended with (its stages before
-        /// this one must be the stored run's; kept when they ran with `output.checkpoint`).
+        /// this one must be the stored run's; kept by a stage with `output.end_state` or
+        /// `output.checkpoint`).
         #[arg(long, value_name = "NAME", requires = "from")]
         stage: Option<String>,
         /// Output folder.

@@ -148,7 +148,7 @@ pub trait OutputSink {
     fn finish_stages(&mut self, _metrics: &Metrics) -> Result<(), OutputError> {
         Ok(())
     }
-    /// In a staged run with `output.checkpoint`, called after a stage finished, before the
+    /// In a staged run with `output.end_state` or `output.checkpoint`, called after a stage finished, before the
     /// next stage's `begin_stage`, with the state it ended with, kept beside the stage's
     /// frames so a later run can start at the next stage. A sink that keeps no checkpoints
     /// ignores it.

@@ -158,7 +158,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint, IoError> {
 
 /// Reads the state a finished stage left: the group `end_state` of the stage group
 /// `/stages/<index>-<name>` of the store at `path` (written only by a stage with
-/// `output.checkpoint`).
+/// `output.end_state` or `output.checkpoint`).
 pub fn read_stage_end(path: &Path, index: usize, name: &str) -> Result<Checkpoint, IoError> {
     if !path.join("zarr.json").is_file() {
         return Err(layout(path, "not a Zarr v3 store (no zarr.json)"));
@@ -169,7 +169,7 @@ pub fn read_stage_end(path: &Path, index: usize, name: &str) -> Result<Checkpoin
             path,
             format!(
                 "the store keeps no end state of stage {index} `{name}` (the stage did not \
-                 finish, or ran without `output.checkpoint`)"
+                 finish, or ran without `output.end_state` or `output.checkpoint`)"
             ),
         ));
     }

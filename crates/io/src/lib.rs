@@ -11,7 +11,7 @@
 //!   physics operators kept, such as voids; the group exists only when there are tables)
 //! - `stages/<index>-<name>/...`: in a staged run, each stage's `time`, `particles`,
 //!   `diagnostics`, `tables` (instead of the root's), its scene and metrics as attributes;
-//!   with `output.checkpoint`, also `end_state/<array>`, the state the stage finished with
+//!   with `output.end_state` or `output.checkpoint`, also `end_state/<array>`, the state the stage finished with
 //!   (a checkpoint's layout), from which `mpm run SCENE --from STORE --stage NEXT` starts
 //! - `checkpoints/<step>/<array>`: float64 `[index]`, the latest checkpoint (only with
 //!   `output.checkpoint`), its structured state in the group attribute `state`

@@ -147,6 +147,58 @@ fn a_chain_started_at_a_later_stage_gives_the_whole_runs_frames() {
 }
 
 #[test]
+fn the_cure_starts_from_a_kept_gap_averaged_fill_as_in_one_run() {
+    // The gap-averaged fill keeps state outside the particles, so it may not checkpoint;
+    // `output.end_state` keeps what the cure takes over, and the cure's `remove` rule (the
+    // voids) applies to it as in one run. Fill and 10 minutes of cure only.
+    let dir = tempfile::tempdir().unwrap();
+    let path = example("underfill-process-2d.json");
+    let mut scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["output"]["end_state"] = json!(true);
+    scene["stages"].as_array_mut().unwrap().truncate(2);
+    scene["stages"][1]["changes"]["solver"]["end_time"] = json!(600.0);
+    let whole = run(dir.path(), "process.json", &scene, "whole", &[]);
+    assert!(whole.status.success(), "{}", text(&whole));
+    let store = "whole/underfill-process-2d.zarr";
+    let mut again = scene.clone();
+    again["name"] = json!("again");
+    let out = run(
+        dir.path(),
+        "again.json",
+        &again,
+        "again",
+        &["--from", store, "--stage", "cure"],
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let metrics: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let removed = metrics["stages"][1]["removed_particles"].as_u64().unwrap();
+    assert!(
+        removed > 0,
+        "the voids' particles were removed at the hand-over"
+    );
+    let (a, b) = (
+        ResultStore::open(dir.path().join(store))
+            .unwrap()
+            .stage("cure")
+            .unwrap(),
+        ResultStore::open(dir.path().join("again/again.zarr"))
+            .unwrap()
+            .stage("cure")
+            .unwrap(),
+    );
+    assert_eq!(bits(&a.times().unwrap()), bits(&b.times().unwrap()));
+    for frame in 0..a.frame_count().unwrap() {
+        for field in ["x", "stress", "temperature", "cure", "material"] {
+            assert_eq!(
+                bits(&a.frame(field, frame).unwrap().1),
+                bits(&b.frame(field, frame).unwrap().1),
+                "the cure's {field} differs at frame {frame}"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_stage_start_is_refused_where_the_store_cannot_give_it() {
     let dir = tempfile::tempdir().unwrap();
     let scene = chain();

@@ -24,6 +24,13 @@ pub struct Output {
     /// (only the last one is kept in the store).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointSchedule>,
+    /// In a staged scene, keep the state each stage with it ends with in the store
+    /// (`stages/<index>-<name>/end_state`), so `mpm run SCENE --from STORE --stage NEXT`
+    /// can start at the next stage; a stage with `checkpoint` keeps it anyway. Unlike a
+    /// checkpoint it is allowed where a physics keeps state outside the particles (the
+    /// gap-averaged fill): a stage hands over only what stages hand over.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub end_state: bool,
     /// Radius, m, of the stress average each stage's summary reports besides the peak
     /// (`averaged_von_mises`): the largest von Mises stress averaged over the particles of
     /// one material within this distance of a particle. Unlike the peak it converges under
@@ -77,6 +84,7 @@ impl Default for Output {
             frames: default_frames(),
             fields: default_fields(),
             checkpoint: None,
+            end_state: false,
             stress_averaging_radius: None,
             fatigue_layer: None,
         }

@@ -32,7 +32,8 @@ pub(super) enum StagedStart<'a> {
 /// Runs the stages of `scene` in order into `sink` from `start`; stops after a stage that
 /// did not finish. Returns the whole run's metrics: the last stage's figures, wall time and
 /// steps over all stages, and `stages` with each stage's summary. A stage with
-/// `output.checkpoint` that finishes hands the sink its end state (`write_stage_end`).
+/// `output.end_state` or `output.checkpoint` that finishes hands the sink its end state
+/// (`write_stage_end`).
 pub(super) fn run_stages(
     scene: &ValidatedScene,
     sink: &mut dyn OutputSink,
@@ -191,7 +192,8 @@ pub(super) fn run_stages(
         }
         let finished = metrics.outcome == Some(Outcome::Finished);
         let mut end = end;
-        if finished && stage_scene.scene.output.checkpoint.is_some() {
+        let output = &stage_scene.scene.output;
+        if finished && (output.end_state || output.checkpoint.is_some()) {
             // What a run starting at the next stage needs beside the particles: the stage
             // summaries so far and the particles removed so far.
             end.set_state(
