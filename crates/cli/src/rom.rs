@@ -427,21 +427,24 @@ struct HeldOut {
 
 /// The held-out runs of `mpm rom study`, each with its scene; on failure the exit status.
 fn held_out_runs(args: &StudyArgs, registry: &Registry) -> Result<Vec<HeldOut>, ExitStatus> {
-    let stores = mpm_rom::snapshots::find_stores(&args.full).map_err(|e| {
-        eprintln!("error: --full: {e}");
-        ExitStatus::InvalidInput
-    })?;
-    if let Some(scene) = &args.scene {
+    // The scene first: a missing or invalid scene file is named before the stores.
+    let scene = match &args.scene {
+        Some(path) => Some((path, load(path, &args.set, registry)?)),
+        None => None,
+    };
+    // A missing store exits 1 (a missing file), a folder without stores 2.
+    let stores = mpm_rom::snapshots::find_stores(&args.full)
+        .map_err(|e| report(e).unwrap_or(ExitStatus::Failure))?;
+    if let Some((path, scene)) = scene {
         if stores.len() > 1 {
             eprintln!(
                 "error: {}: give the scene with one --full only; with {} held-out runs each \
                  reduced run runs the scene its store holds (leave the scene out)",
-                scene.display(),
+                path.display(),
                 stores.len()
             );
             return Err(ExitStatus::InvalidInput);
         }
-        let scene = load(scene, &args.set, registry)?;
         return Ok(vec![HeldOut {
             store: stores[0].clone(),
             scene,

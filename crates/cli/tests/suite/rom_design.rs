@@ -161,17 +161,34 @@ fn bad_designs_and_studies_are_refused() {
         ],
         "give the scene with one --full only",
     );
+    // A folder without stores is bad input; a missing store a missing file (exit 1).
+    std::fs::create_dir_all(d.join("empty")).unwrap();
     refused(
         &[
             "rom",
             "study",
             "--full",
-            "none",
+            "empty",
             "--runs",
             "two/train",
             "--latent",
             "2",
         ],
-        "--full",
+        "holds no result store",
     );
+    let o = mpm(
+        &[
+            "rom",
+            "study",
+            "--full",
+            "none.zarr",
+            "--runs",
+            "two/train",
+            "--latent",
+            "2",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("none.zarr"), "{}", text(&o));
 }
