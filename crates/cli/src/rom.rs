@@ -325,6 +325,18 @@ fn run_one(
     result
 }
 
+/// The parts of a reduced run in `metrics.stage_seconds`, in the order a step runs them.
+const ROM_STAGES: [&str; 8] = [
+    "neighbourhood",
+    "kinematics",
+    "stress",
+    "p2g",
+    "grid_update",
+    "g2p",
+    "projection",
+    "frames",
+];
+
 fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow::Result<()> {
     let get = |k: &str| m.physics.get(k).copied().unwrap_or(f64::NAN);
     outln!(
@@ -341,6 +353,17 @@ fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow
         get("rom.quadrature_points"),
         get("rom.candidates"),
     )?;
+    let parts: Vec<String> = ROM_STAGES
+        .iter()
+        .filter_map(|&name| m.stage_seconds.get(name).map(|s| (name, s)))
+        .map(|(name, s)| {
+            let share = 100.0 * s / m.wall_seconds.max(1e-300);
+            format!("{name} {s:.2} s ({share:.0}%)")
+        })
+        .collect();
+    if !parts.is_empty() {
+        outln!("where the time went: {}", parts.join(", "))?;
+    }
     if let Some(d) = &m.diagnostic {
         outln!(
             "stopped at step {} (t = {} s): {}",

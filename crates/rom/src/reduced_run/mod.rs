@@ -17,6 +17,7 @@ mod options;
 mod projection;
 mod sampling;
 mod setup;
+mod stage_clock;
 mod step;
 mod stress;
 mod time_loop;

@@ -4,6 +4,7 @@
 
 use super::diagnostics::diagnostic;
 use super::setup::{Reduced, StepStats};
+use super::stage_clock::RomStage;
 use super::stress::{matrix_from_rows, update_stress_parallel};
 use crate::RomError;
 use mpm_core::kernels::Kernel;
@@ -30,6 +31,7 @@ where
     /// One reduced step of `dt` ending at `time_end`. Returns a diagnostic when the step
     /// cannot go on (a sample left the grid, a particle inverted).
     pub(super) fn step(&mut self, dt: f64, time_end: f64) -> Result<Option<Diagnostic>, RomError> {
+        let lap = std::time::Instant::now();
         let grid_nodes = self.sim.grid.nodes;
         // 1. Mark the base nodes whose stencils meet a sample's stencil.
         self.map
@@ -88,6 +90,7 @@ where
         let nq = self.quad.len();
         self.quadrature_total += nq as f64;
         self.quadrature_max = self.quadrature_max.max(nq);
+        let lap = self.clock.lap(RomStage::Neighbourhood, lap);
         // 3. Kinematics from the map: F, velocity and affine velocity of each.
         self.map
             .gradients(&self.q, &self.quad, &mut self.flat_f[..nq * D * D])?;
@@ -129,6 +132,7 @@ where
                 || (f64::INFINITY, 0.0f64),
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             );
+        let lap = self.clock.lap(RomStage::Kinematics, lap);
         let mut stats = StepStats {
             min_det_f,
             max_speed,
@@ -160,6 +164,7 @@ where
             ));
         }
         stats.max_wave_speed = batch_stats.max_wave_speed;
+        let lap = self.clock.lap(RomStage::Stress, lap);
         // 5. P2G over the quadrature particles: each particle's stencil contributions are
         // computed in parallel into a buffer, then added to the grid in one pass.
         let span_z = if D == 3 { K::SPAN } else { 1 };
@@ -214,14 +219,17 @@ where
                     });
                 });
         }
-        grid.mass.fill(0.0);
-        grid.momentum.fill(Vector::<D>::zeros());
+        // The sparse grid zeroes the blocks the last step wrote; each stencil row marks its
+        // blocks as written, so the grid update and the next clear visit only those.
+        grid.clear();
         for k in 0..nq {
             let base = self.p2g_base[k];
             let buffer = &self.p2g[k * per..(k + 1) * per];
             let mut t = 0;
             for a in 0..K::SPAN {
                 for b in 0..K::SPAN {
+                    let row = base + a * stride[0] + b * stride[1];
+                    grid.mark(row..row + span_z);
                     for c in 0..span_z {
                         let i = base + a * stride[0] + b * stride[1] + c;
                         grid.mass[i] += buffer[t];
@@ -232,6 +240,7 @@ where
                 }
             }
         }
+        let lap = self.clock.lap(RomStage::P2g, lap);
         // 6. The core's grid update: forces, damping, walls and obstacles.
         update_grid(
             grid,
@@ -244,6 +253,7 @@ where
                 time: time_end,
             },
         );
+        let lap = self.clock.lap(RomStage::GridUpdate, lap);
         // 7. G2P to the sampled particles.
         for k in 0..self.samples.len() {
             let p = self.samples[k] as usize;
@@ -262,9 +272,11 @@ where
             self.sample_v[k * D..(k + 1) * D].copy_from_slice(v.as_slice());
             stats.max_speed = stats.max_speed.max(v.norm());
         }
+        let lap = self.clock.lap(RomStage::G2p, lap);
         // 8. Back onto the map.
         self.project_positions()?;
         self.project_velocities()?;
+        self.clock.lap(RomStage::Projection, lap);
         self.stats = stats;
         Ok(None)
     }

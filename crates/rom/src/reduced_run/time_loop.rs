@@ -3,6 +3,7 @@
 
 use super::diagnostics::{diagnostic_at, diagnostic_plain};
 use super::setup::Reduced;
+use super::stage_clock::RomStage;
 use crate::RomError;
 use mpm_core::kernels::Kernel;
 use mpm_core::material::Material;
@@ -35,7 +36,9 @@ where
         let end_time = self.settings.end_time;
         let frame_dt = end_time / self.settings.frames as f64;
         let eps = 1e-9 * frame_dt;
+        let lap = Instant::now();
         let first = self.write_frame(sink, 0, 0.0, 0.0, 0)?;
+        self.clock.lap(RomStage::Frames, lap);
         let mut frame = 1usize;
         let (mut time, mut steps) = (0.0f64, 0u64);
         let mut min_det = first[7];
@@ -71,7 +74,9 @@ where
             min_det = min_det.min(self.stats.min_det_f);
             max_speed = max_speed.max(speed);
             if time >= next_frame_time - eps {
+                let lap = Instant::now();
                 let d = self.write_frame(sink, frame, time, dt, steps)?;
+                self.clock.lap(RomStage::Frames, lap);
                 max_momentum = max_momentum.max(d[8]);
                 min_det = min_det.min(d[7]);
                 frame += 1;
@@ -119,6 +124,7 @@ where
             threads: rayon::current_num_threads(),
             diagnostic,
             physics,
+            stage_seconds: self.clock.by_name(),
             ..Metrics::default()
         };
         sink.finish(&metrics)?;
