@@ -325,18 +325,6 @@ fn run_one(
     result
 }
 
-/// The parts of a reduced run in `metrics.stage_seconds`, in the order a step runs them.
-const ROM_STAGES: [&str; 8] = [
-    "neighbourhood",
-    "kinematics",
-    "stress",
-    "p2g",
-    "grid_update",
-    "g2p",
-    "projection",
-    "frames",
-];
-
 fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow::Result<()> {
     let get = |k: &str| m.physics.get(k).copied().unwrap_or(f64::NAN);
     outln!(
@@ -353,7 +341,7 @@ fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow
         get("rom.quadrature_points"),
         get("rom.candidates"),
     )?;
-    let parts: Vec<String> = ROM_STAGES
+    let parts: Vec<String> = mpm_rom::reduced_run::ROM_STAGES
         .iter()
         .filter_map(|&name| m.stage_seconds.get(name).map(|s| (name, s)))
         .map(|(name, s)| {

@@ -24,6 +24,7 @@ mod time_loop;
 
 pub use options::{REDUCED_FIELDS, RunOptions};
 pub use sampling::{farthest_point_samples, interior_particles};
+pub use stage_clock::ROM_STAGES;
 
 use crate::{Model, RomError};
 use mpm_core::kernels::Kernel;

@@ -25,7 +25,9 @@ pub(super) enum RomStage {
     Frames,
 }
 
-const NAMES: [&str; 8] = [
+/// The names of the [`RomStage`]s in `metrics.stage_seconds`, in the order a step runs
+/// them.
+pub const ROM_STAGES: [&str; 8] = [
     "neighbourhood",
     "kinematics",
     "stress",
@@ -39,7 +41,7 @@ const NAMES: [&str; 8] = [
 /// Seconds spent in each [`RomStage`] so far.
 #[derive(Clone, Debug, Default)]
 pub(super) struct RomClock {
-    seconds: [f64; NAMES.len()],
+    seconds: [f64; ROM_STAGES.len()],
 }
 
 impl RomClock {
@@ -52,7 +54,7 @@ impl RomClock {
 
     /// The seconds by stage name, for `Metrics::stage_seconds`.
     pub(super) fn by_name(&self) -> std::collections::BTreeMap<String, f64> {
-        NAMES
+        ROM_STAGES
             .iter()
             .zip(self.seconds)
             .map(|(name, s)| (name.to_string(), s))
