@@ -75,8 +75,28 @@ impl Remote {
     }
 }
 
+/// Where a submitted job starts, when not from its scene: another job's stored state.
+#[derive(Clone, Debug, Default)]
+pub struct StartFrom {
+    /// The job whose store holds the state (`--from`).
+    pub job: Option<String>,
+    /// The stage a staged scene starts at (`--stage`).
+    pub stage: Option<String>,
+}
+
 /// Submits a scene file; returns the job.
 pub fn submit(remote: &Remote, scene: &Path, overrides: &[String]) -> anyhow::Result<Value> {
+    submit_from(remote, scene, overrides, &StartFrom::default())
+}
+
+/// Submits a scene file that starts from another job's stored state (`from=JOB`, with
+/// `stage=NAME` for a staged scene); returns the job.
+pub fn submit_from(
+    remote: &Remote,
+    scene: &Path,
+    overrides: &[String],
+    start: &StartFrom,
+) -> anyhow::Result<Value> {
     let text = std::fs::read_to_string(scene)
         .with_context(|| format!("cannot read scene file `{}`", scene.display()))?;
     let mut value: Value = serde_json::from_str(&text)
@@ -85,10 +105,29 @@ pub fn submit(remote: &Remote, scene: &Path, overrides: &[String]) -> anyhow::Re
         crate::overrides::apply_override(&mut value, o)
             .map_err(|e| input_error!("{}: --set: {e:#}", scene.display()))?;
     }
-    let r = remote
-        .request(reqwest::Method::POST, "/v1/jobs")?
-        .json(&value);
+    let query: Vec<String> = [("from", &start.job), ("stage", &start.stage)]
+        .into_iter()
+        .filter_map(|(key, value)| Some(format!("{key}={}", url_escaped(value.as_deref()?))))
+        .collect();
+    let path = match query.is_empty() {
+        true => "/v1/jobs".to_string(),
+        false => format!("/v1/jobs?{}", query.join("&")),
+    };
+    let r = remote.request(reqwest::Method::POST, &path)?.json(&value);
     Ok(remote.send(r)?.json()?)
+}
+
+/// `text` with every byte but the unreserved characters of RFC 3986 percent-encoded, for a
+/// query value.
+fn url_escaped(text: &str) -> String {
+    text.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'.' | b'_' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 /// One job.

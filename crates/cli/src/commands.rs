@@ -241,6 +241,13 @@ pub enum Command {
         /// Wait for the job to end, with a progress bar, and print its metrics.
         #[arg(long)]
         wait: bool,
+        /// Start from this job's stored state (its latest checkpoint, or with `--stage` the
+        /// end of the stage before), as `mpm run --from STORE` does.
+        #[arg(long, value_name = "JOB")]
+        from: Option<String>,
+        /// With `--from`: the stage of the staged scene to start at.
+        #[arg(long, value_name = "NAME", requires = "from")]
+        stage: Option<String>,
         #[command(flatten)]
         remote: RemoteArgs,
     },
@@ -613,10 +620,13 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             scene,
             set,
             wait,
+            from,
+            stage,
             remote,
         } => {
             let remote = remote.remote();
-            let job = crate::client::submit(&remote, &scene, &set)?;
+            let start = crate::client::StartFrom { job: from, stage };
+            let job = crate::client::submit_from(&remote, &scene, &set, &start)?;
             let id = job["id"].as_str().unwrap_or("?").to_string();
             outln!("submitted job {id}")?;
             if !wait {

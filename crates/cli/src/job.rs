@@ -18,16 +18,27 @@ pub struct RunJobArgs {
     /// Folder that relative particle-file paths resolve against.
     #[arg(long)]
     pub base: PathBuf,
+    /// A store whose state the run starts from (a job submitted with `from`).
+    #[arg(long)]
+    pub from: Option<PathBuf>,
+    /// With `--from`: the stage of the staged scene to start at.
+    #[arg(long, requires = "from")]
+    pub stage: Option<String>,
 }
 
 /// Runs one job, reporting to the service on stdout (see `mpm_service::run_job_process`).
 pub fn run(args: &RunJobArgs, registry: &Registry) -> ExitStatus {
+    let start = args.from.as_ref().map(|store| mpm_service::JobStart {
+        store: store.clone(),
+        stage: args.stage.clone(),
+    });
     let code = mpm_service::run_job_process(
         registry,
         &args.scene,
         &args.store,
         &args.base,
         &Limits::current(),
+        start.as_ref(),
     );
     match code {
         0 => ExitStatus::Success,

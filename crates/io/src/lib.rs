@@ -19,6 +19,7 @@
 //!   `checkpoint` (where the latest checkpoint is, its step, time and frames)
 
 mod checkpoint_store;
+pub mod start_from;
 mod vtk;
 mod zarr_reader;
 mod zarr_writer;

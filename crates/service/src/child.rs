@@ -3,7 +3,8 @@
 //! panic or an exhausted memory limit there fails that job only.
 //!
 //! Protocol: the worker writes the scene to `jobs/<id>/scene.json` and starts
-//! `PROGRAM ARGS... --scene FILE --store DIR --base DATA_DIR`. The child prints one JSON
+//! `PROGRAM ARGS... --scene FILE --store DIR --base DATA_DIR`, with `--from STORE [--stage
+//! NAME]` for a job that starts from another job's stored state. The child prints one JSON
 //! [`Report`] per line: progress at most every 200 ms, then the metrics or the refusal. A
 //! line `cancel` on its stdin, or stdin closing (the service died), cancels the run within a
 //! step; it keeps what it wrote.
@@ -54,14 +55,16 @@ fn emit(out: &mut impl Write, report: &Report) {
     }
 }
 
-/// The job subcommand: runs the scene in `scene` into the store `store`, reporting on
-/// stdout. Returns the exit code: 0 finished, 3 stopped or cancelled, 2 refused, 1 failed.
+/// The job subcommand: runs the scene in `scene` into the store `store` (from `start` when
+/// given), reporting on stdout. Returns the exit code: 0 finished, 3 stopped or cancelled,
+/// 2 refused, 1 failed.
 pub fn run_job_process(
     registry: &Registry,
     scene: &Path,
     store: &Path,
     base: &Path,
     limits: &Limits,
+    start: Option<&crate::JobStart>,
 ) -> u8 {
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
@@ -113,7 +116,7 @@ pub fn run_job_process(
             Control::Continue
         }
     };
-    let result = crate::resume::run_or_resume(&validated, store, &mut observer);
+    let result = crate::resume::run_or_resume(&validated, store, start, registry, &mut observer);
     let (step, time, wall) = last.lock().map(|l| *l).unwrap_or_default();
     emit(&mut out, &Report::Progress(step, time, wall));
     match result {
@@ -146,13 +149,25 @@ pub(crate) enum ChildEnd {
 /// Keeps the last `TAIL` bytes of the child's stderr for the job's diagnostic.
 const TAIL: usize = 2000;
 
+/// What a job's process is given: its folder, the folder particle files resolve against,
+/// its scene (JSON text) and where it starts.
+pub(crate) struct ChildJob<'a> {
+    pub job_dir: &'a Path,
+    pub base: &'a Path,
+    pub scene: &'a str,
+    pub start: Option<&'a crate::JobStart>,
+}
+
 /// Runs one job in a child process; progress goes to `progress` and `last`, `cancel` is
 /// passed on as a `cancel` line.
 pub(crate) async fn run_in_child(
     command: &JobCommand,
-    job_dir: &Path,
-    base: &Path,
-    scene: &str,
+    ChildJob {
+        job_dir,
+        base,
+        scene,
+        start,
+    }: ChildJob<'_>,
     cancel: Arc<AtomicBool>,
     progress: tokio::sync::mpsc::UnboundedSender<(u64, f64, f64)>,
     last: Arc<Mutex<(u64, f64, f64)>>,
@@ -171,8 +186,14 @@ pub(crate) async fn run_in_child(
         .arg("--store")
         .arg(job_dir.join("results.zarr"))
         .arg("--base")
-        .arg(base)
-        .stdin(std::process::Stdio::piped())
+        .arg(base);
+    if let Some(start) = start {
+        cmd.arg("--from").arg(&start.store);
+        if let Some(stage) = &start.stage {
+            cmd.arg("--stage").arg(stage);
+        }
+    }
+    cmd.stdin(std::process::Stdio::piped())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .kill_on_drop(false);

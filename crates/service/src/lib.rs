@@ -13,6 +13,7 @@ mod frames;
 mod metrics;
 mod results_store;
 mod resume;
+mod start_state;
 mod users;
 mod worker;
 
@@ -22,6 +23,7 @@ pub use error::ServiceError;
 pub use frames::{FrameError, FrameRenderer, FrameRequest};
 pub use mpm_core::scene::Limits;
 pub use results_store::{StoreError, StoreLocation};
+pub use start_state::JobStart;
 pub use users::{User, Users, UsersError, token_hash};
 
 use mpm_core::plugin::Registry;

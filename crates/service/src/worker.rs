@@ -3,10 +3,10 @@
 //! cancellation within one step. A job whose worker died goes back to the queue when its
 //! lease runs out; any worker requeues it.
 
-use crate::State;
 use crate::child::ChildEnd;
 use crate::db::Claimed;
 use crate::results_store::JobSync;
+use crate::{JobStart, State};
 use mpm_core::solver::{Control, Progress, RunError};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -230,6 +230,8 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         scene,
         attempt,
         particles,
+        from_job,
+        from_stage,
         ..
     } = claimed;
     // The lease is renewed from the start: downloading and uploading a large store take
@@ -242,8 +244,22 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
         flag.clone(),
     )));
     // With an S3 store, an earlier attempt's store (and checkpoint) comes down first.
+    let from = from_job.as_deref().map(|job| (job, from_stage.as_deref()));
     let end = match state.results.prepare(&id, attempt).await {
-        Ok(sync) => run_attempt(state, worker, &id, scene, flag, sync, &mut heartbeat).await,
+        Ok(sync) => match fetch_start(state, &id, &scene, from).await {
+            Ok(start) => {
+                let run = Run {
+                    id: &id,
+                    scene,
+                    start,
+                };
+                run_attempt(state, worker, run, flag, sync, &mut heartbeat).await
+            }
+            Err(message) => {
+                sync.discard().await;
+                Some(("failed", None, failure_text(message), None))
+            }
+        },
         Err(e) => Some((
             "failed",
             None,
@@ -266,13 +282,34 @@ async fn run_job(state: &Arc<State>, worker: &str, claimed: Claimed) {
     record_end(state, &id, worker, attempt, particles, end).await;
 }
 
+/// The stored state a job starts from (`from`: the source job and stage), made local.
+async fn fetch_start(
+    state: &Arc<State>,
+    id: &str,
+    scene: &str,
+    from: Option<(&str, Option<&str>)>,
+) -> Result<Option<JobStart>, String> {
+    match from {
+        None => Ok(None),
+        Some((source, stage)) => crate::start_state::fetch(state, id, scene, source, stage)
+            .await
+            .map(Some),
+    }
+}
+
+/// One run of a claimed job: its id, its scene (JSON text) and where it starts.
+struct Run<'a> {
+    id: &'a str,
+    scene: String,
+    start: Option<JobStart>,
+}
+
 /// Runs a claimed job, uploading its store at checkpoints and at the end (S3); returns how
 /// it ended, or `None` when nothing is to be recorded (see [`run_job`]).
 async fn run_attempt(
     state: &Arc<State>,
     worker: &str,
-    id: &str,
-    scene: String,
+    Run { id, scene, start }: Run<'_>,
     flag: Arc<AtomicBool>,
     sync: JobSync,
     heartbeat: &mut Heartbeat,
@@ -295,18 +332,18 @@ async fn run_attempt(
     let last = Arc::new(Mutex::new((0u64, 0.0f64, 0.0f64)));
     let outcome = match &state.config.job_command {
         Some(command) => {
-            crate::child::run_in_child(
-                command,
-                &state.results.job_dir(id),
-                &state.config.data_dir,
-                &scene,
-                flag.clone(),
-                tx,
-                last.clone(),
-            )
-            .await
+            let job = crate::child::ChildJob {
+                job_dir: &state.results.job_dir(id),
+                base: &state.config.data_dir,
+                scene: &scene,
+                start: start.as_ref(),
+            };
+            crate::child::run_in_child(command, job, flag.clone(), tx, last.clone()).await
         }
-        None => run_in_process(state, id, scene, flag.clone(), tx, last.clone()).await,
+        None => {
+            let run = Run { id, scene, start };
+            run_in_process(state, run, flag.clone(), tx, last.clone()).await
+        }
     };
     let _ = writer.await;
     let _ = stop_uploads.send(true);
@@ -435,8 +472,7 @@ async fn record_end(
 /// panic fails the job, but an abort or exhausted memory takes the service down with it.
 async fn run_in_process(
     state: &Arc<State>,
-    id: &str,
-    scene: String,
+    Run { id, scene, start }: Run<'_>,
     cancel: Arc<AtomicBool>,
     tx: tokio::sync::mpsc::UnboundedSender<(u64, f64, f64)>,
     last: Arc<Mutex<(u64, f64, f64)>>,
@@ -469,7 +505,14 @@ async fn run_in_process(
                 Control::Continue
             }
         };
-        match crate::resume::run_or_resume(&validated, &store, &mut observer) {
+        let run = crate::resume::run_or_resume(
+            &validated,
+            &store,
+            start.as_ref(),
+            &registry,
+            &mut observer,
+        );
+        match run {
             Ok(m) => ChildEnd::Metrics(serde_json::to_value(&m).unwrap_or_default()),
             Err(RunError::Refused { path, message }) => {
                 ChildEnd::Refused(format!("{path}: {message}"))

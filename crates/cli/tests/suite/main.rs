@@ -41,6 +41,7 @@ mod run_from;
 mod run_from_stage;
 mod service;
 mod service_access;
+mod service_from;
 mod service_postgres;
 mod service_s3;
 mod setup;

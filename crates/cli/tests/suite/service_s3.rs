@@ -9,8 +9,9 @@
 use crate::common;
 
 use common::jobs::{
-    api_client as client, assert_png, check_runs, get_json, kill_worker, long_bar, small_bar,
-    submit_long_then_small, tally, wait_for_all,
+    api_client as client, assert_png, assert_same_stage_frames, check_runs, get_json, kill_worker,
+    long_bar, small_bar, staged_bar, submit_job, submit_job_from, submit_long_then_small, tally,
+    wait_for_all,
 };
 use common::moto::{Moto, moto_server};
 use common::postgres::{Postgres, postgres_bin};
@@ -291,6 +292,39 @@ fn two_workers_on_s3_one_killed_the_other_resumes_from_the_uploaded_checkpoint()
         .unwrap();
     assert_eq!(missing.status(), 404);
     assert_png(&format!("{url}/v1/jobs/{long_id}/frames/-1.png"));
+
+    // A job that starts at a later stage of another job's store: the worker downloads only
+    // the end state it starts from, and the stages it runs equal the whole job's.
+    let staged = staged_bar();
+    let whole_id = submit_job(&url, &staged);
+    let whole = wait_for_all(
+        &url,
+        std::slice::from_ref(&whole_id),
+        Instant::now(),
+        Duration::from_secs(120),
+        logs,
+    );
+    assert_eq!(whole[&whole_id]["status"], "succeeded", "{whole:?}");
+    let from_id = submit_job_from(&url, &format!("?from={whole_id}&stage=second"), &staged);
+    let from = wait_for_all(
+        &url,
+        std::slice::from_ref(&from_id),
+        Instant::now(),
+        Duration::from_secs(120),
+        logs,
+    );
+    assert_eq!(
+        from[&from_id]["status"],
+        "succeeded",
+        "{from:?}\n{}",
+        logs()
+    );
+    let (a, b) = (copies.path().join("whole"), copies.path().join("from"));
+    fetch_store(&url, &whole_id, &a);
+    fetch_store(&url, &from_id, &b);
+    for stage in ["second", "third"] {
+        assert_same_stage_frames(&a, &b, stage);
+    }
 
     // Nothing is left in the survivor's scratch folder: every store went to the bucket.
     let survivor_n = workers.iter().position(Option::is_some).unwrap() + 1;

@@ -5,6 +5,7 @@ mod access;
 mod frames;
 mod page;
 mod submit;
+mod submit_from;
 
 use access::{Caller, authorize, forbidden, log_request, metrics};
 use submit::submit;

@@ -1,15 +1,18 @@
 //! `POST /v1/jobs`: the body read by hand (every rejection gets the JSON error body), the
 //! scene validated on a blocking thread within a budget and against the service's bounds,
-//! then queued (with its owner) unless the queue or the user's share of it is full.
+//! then queued (with its owner) unless the queue or the user's share of it is full. A job
+//! may start from another job's stored state (`?from=JOB[&stage=NAME]`, `submit_from.rs`).
 
 use super::Shared;
 use super::access::Caller;
+use super::submit_from::{self, Source, StageIndex, SubmitQuery};
 use crate::db;
 use crate::error::{ApiError, Problem};
 use axum::Extension;
 use axum::Json;
 use axum::body::Bytes;
-use axum::extract::rejection::BytesRejection;
+use axum::extract::Query;
+use axum::extract::rejection::{BytesRejection, QueryRejection};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
@@ -27,9 +30,12 @@ fn body_error(e: BytesRejection) -> ApiError {
 pub(super) async fn submit(
     axum::extract::State(state): axum::extract::State<Shared>,
     Extension(caller): Extension<Caller>,
+    query: Result<Query<SubmitQuery>, QueryRejection>,
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
+    let Query(query) =
+        query.map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, "bad_query", e.body_text()))?;
     let body = body.map_err(body_error)?;
     let json_type = headers
         .get(header::CONTENT_TYPE)
@@ -49,24 +55,43 @@ pub(super) async fn submit(
             format!("the body is not valid JSON: {e}"),
         )
     })?;
-    let checked = validate_within_budget(&state, value).await?;
+    let source = submit_from::source(&state, &query, &caller).await?;
+    let (checked, source) = validate_within_budget(&state, value, source).await?;
     if checked.particles > state.config.max_particles {
         return Err(too_many_particles(
             checked.particles.to_string(),
             state.config.max_particles,
         ));
     }
+    let start_time = match &source {
+        Some(source) => Some(
+            submit_from::start_time(&state, source, &checked.validated, checked.stage_index)
+                .await?,
+        ),
+        None => None,
+    };
     let id = uuid::Uuid::new_v4().to_string();
+    let job = db::NewJob {
+        id: &id,
+        name: &checked.name,
+        scene: &checked.scene,
+        particles: checked.particles,
+        end_time: checked.end_time,
+        stages: checked.stages.as_deref(),
+        owner: caller.name.as_deref(),
+        start: source
+            .as_ref()
+            .zip(start_time)
+            .map(|(s, time)| db::StartFrom {
+                job: &s.id,
+                stage: s.stage.as_deref(),
+                time,
+            }),
+    };
     let inserted = state
         .db
         .insert(
-            &id,
-            &checked.name,
-            &checked.scene,
-            checked.particles,
-            checked.end_time,
-            checked.stages.as_deref(),
-            caller.name.as_deref(),
+            &job,
             state.config.max_queued,
             state
                 .config
@@ -104,6 +129,7 @@ pub(super) async fn submit(
         name = %checked.name,
         particles = checked.particles,
         owner = caller.name.as_deref().unwrap_or("-"),
+        from = source.as_ref().map_or("-", |s| s.id.as_str()),
         "job queued"
     );
     let row = state
@@ -130,12 +156,14 @@ fn too_many_particles(count: String, max: usize) -> ApiError {
 }
 
 /// Validates a scene on a blocking thread, at most `max_validations` at once and within
-/// `validation_timeout` (waiting for a turn included). A validation past its budget keeps
-/// its permit until it ends, so stragglers cannot pile up.
+/// `validation_timeout` (waiting for a turn included), with the checks of a start from
+/// `source`'s stored state. A validation past its budget keeps its permit until it ends, so
+/// stragglers cannot pile up.
 async fn validate_within_budget(
     state: &Shared,
     value: serde_json::Value,
-) -> Result<CheckedScene, ApiError> {
+    source: Option<Source>,
+) -> Result<(CheckedScene, Option<Source>), ApiError> {
     let budget = state.config.validation_timeout;
     let deadline = tokio::time::Instant::now() + budget;
     let permit = tokio::time::timeout_at(deadline, state.validations.clone().acquire_owned())
@@ -163,7 +191,11 @@ async fn validate_within_budget(
     };
     let task = tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        check_scene(value, &registry, &data_dir, &limits, &bounds)
+        let mut checked = check_scene(value, &registry, &data_dir, &limits, &bounds)?;
+        if let Some(source) = &source {
+            checked.stage_index = submit_from::check_scenes(source, &checked.validated, &registry)?;
+        }
+        Ok((checked, source))
     });
     match tokio::time::timeout_at(deadline, task).await {
         Ok(joined) => joined.map_err(ApiError::internal)?,
@@ -180,6 +212,10 @@ async fn validate_within_budget(
 }
 
 struct CheckedScene {
+    /// The scene as validated (for the start checks).
+    validated: mpm_core::scene::ValidatedScene,
+    /// With `stage`: that stage's index.
+    stage_index: StageIndex,
     name: String,
     scene: String,
     particles: usize,
@@ -297,6 +333,7 @@ fn check_scene(
         }
     }
     Ok(CheckedScene {
+        stage_index: None,
         name: validated.scene.name.clone(),
         scene: validated.json.to_string(),
         particles: validated.particle_count(),
@@ -309,5 +346,6 @@ fn check_scene(
                 .collect();
             serde_json::to_string(&list).unwrap_or_default()
         }),
+        validated,
     })
 }

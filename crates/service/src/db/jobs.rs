@@ -17,6 +17,38 @@ pub enum Inserted {
     UserQueueFull,
 }
 
+/// A job to queue: what the submission checked.
+#[derive(Debug, Clone, Copy)]
+pub struct NewJob<'a> {
+    /// Job id.
+    pub id: &'a str,
+    /// The scene's name.
+    pub name: &'a str,
+    /// The validated scene (JSON text).
+    pub scene: &'a str,
+    /// Particle count.
+    pub particles: usize,
+    /// The simulated time the run ends at.
+    pub end_time: f64,
+    /// A staged scene's `[[name, end_time], ...]` (JSON text).
+    pub stages: Option<&'a str>,
+    /// The submitting user.
+    pub owner: Option<&'a str>,
+    /// Where the run starts from, when not from the scene itself.
+    pub start: Option<StartFrom<'a>>,
+}
+
+/// A job's start from another job's stored state.
+#[derive(Debug, Clone, Copy)]
+pub struct StartFrom<'a> {
+    /// The job whose store holds the state.
+    pub job: &'a str,
+    /// The stage the run starts at (a staged scene; `None`: the latest checkpoint).
+    pub stage: Option<&'a str>,
+    /// The simulated time of the state.
+    pub time: f64,
+}
+
 /// A job a worker has just claimed.
 #[derive(Debug, Clone)]
 pub struct Claimed {
@@ -30,6 +62,10 @@ pub struct Claimed {
     pub particles: i64,
     /// Seconds the job waited in the queue (from submission, or from its requeueing).
     pub waited: f64,
+    /// The job whose stored state the run starts from, if any.
+    pub from_job: Option<String>,
+    /// The stage it starts at (with `from_job`, a staged scene).
+    pub from_stage: Option<String>,
 }
 
 /// One job requeued (or cancelled) because its worker's lease ran out.
@@ -46,23 +82,17 @@ pub struct Requeued {
 impl Db {
     /// Inserts a queued job unless the queue (`max_queued`) or the owner's share of it
     /// (`max_per_user`, for owned jobs) is full.
-    #[allow(clippy::too_many_arguments)]
     pub async fn insert(
         &self,
-        id: &str,
-        name: &str,
-        scene: &str,
-        particles: usize,
-        end_time: f64,
-        stages: Option<&str>,
-        owner: Option<&str>,
+        job: &NewJob<'_>,
         max_queued: usize,
         max_per_user: Option<usize>,
     ) -> Result<Inserted, sqlx::Error> {
         let count =
             "SELECT COUNT(*) FROM jobs WHERE status = 'queued' AND (?1 IS NULL OR owner = ?1)";
-        let insert = "INSERT INTO jobs (id, name, status, scene, particles, end_time, owner, stages) \
-             SELECT ?1, ?2, 'queued', ?3, ?4, ?5, ?6, ?9 \
+        let insert = "INSERT INTO jobs (id, name, status, scene, particles, end_time, owner, stages, \
+             from_job, from_stage, start_time) \
+             SELECT ?1, ?2, 'queued', ?3, ?4, ?5, ?6, ?9, ?10, ?11, ?12 \
              WHERE (SELECT COUNT(*) FROM jobs WHERE status = 'queued') < ?7 \
              AND (?8 < 0 OR (SELECT COUNT(*) FROM jobs WHERE status = 'queued' AND owner = ?6) < ?8)";
         let per_user = max_per_user.map_or(-1, |m| m as i64);
@@ -76,15 +106,18 @@ impl Db {
                     .await?;
             }
             let done = sqlx::query(&sql)
-                .bind(id)
-                .bind(name)
-                .bind(scene)
-                .bind(particles as i64)
-                .bind(end_time)
-                .bind(owner)
+                .bind(job.id)
+                .bind(job.name)
+                .bind(job.scene)
+                .bind(job.particles as i64)
+                .bind(job.end_time)
+                .bind(job.owner)
                 .bind(max_queued as i64)
                 .bind(per_user)
-                .bind(stages)
+                .bind(job.stages)
+                .bind(job.start.map(|s| s.job))
+                .bind(job.start.and_then(|s| s.stage))
+                .bind(job.start.map_or(0.0, |s| s.time))
                 .execute(&mut *tx)
                 .await?;
             tx.commit().await?;
@@ -201,7 +234,7 @@ impl Db {
             "UPDATE jobs SET status = 'running', attempts = attempts + 1, started_at = {{now}}, \
              worker = ?1, lease_until = {{epoch}} + ?2 \
              WHERE id = (SELECT id FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1 {lock}) \
-             AND status = 'queued' RETURNING id, scene, attempts, particles, created_at"
+             AND status = 'queued' RETURNING id, scene, attempts, particles, created_at, from_job, from_stage"
         );
         let run = "INSERT INTO job_runs (job_id, attempt, worker) VALUES (?1, ?2, ?3)";
         let claimed = on_backend!(self, pool, sql = &text, {
@@ -228,6 +261,8 @@ impl Db {
                         attempt,
                         particles: row.try_get(3)?,
                         waited: seconds_since(&row.try_get::<String, _>(4)?),
+                        from_job: row.try_get(5)?,
+                        from_stage: row.try_get(6)?,
                     })
                 }
             }

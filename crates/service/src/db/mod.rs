@@ -178,9 +178,17 @@ mod lease_tests {
         let insert = |id: &'static str, owner: &'static str| {
             let db = db.clone();
             async move {
-                db.insert(id, "n", "{}", 1, 1.0, None, Some(owner), 10, Some(1))
-                    .await
-                    .unwrap()
+                let job = NewJob {
+                    id,
+                    name: "n",
+                    scene: "{}",
+                    particles: 1,
+                    end_time: 1.0,
+                    stages: None,
+                    owner: Some(owner),
+                    start: None,
+                };
+                db.insert(&job, 10, Some(1)).await.unwrap()
             }
         };
         assert_eq!(insert("a", "alice").await, Inserted::Queued);

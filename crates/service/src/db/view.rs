@@ -24,10 +24,17 @@ pub struct JobRow {
     pub worker: Option<String>,
     /// A staged scene's stages as JSON `[[name, end_time], ...]`.
     pub stages: Option<String>,
+    /// The job whose stored state this one starts from.
+    pub from_job: Option<String>,
+    /// The stage it starts at (a staged scene).
+    pub from_stage: Option<String>,
+    /// The simulated time it starts at (0 for a job that starts from its scene).
+    pub start_time: f64,
 }
 
 pub(crate) const COLUMNS: &str = "id, name, status, particles, end_time, created_at, started_at, finished_at, \
-                       step, sim_time, wall_seconds, attempts, metrics, failure, owner, worker, stages";
+                       step, sim_time, wall_seconds, attempts, metrics, failure, owner, worker, stages, \
+                       from_job, from_stage, start_time";
 
 /// Whether a status is final.
 pub fn is_final(status: &str) -> bool {
@@ -50,10 +57,26 @@ pub struct JobView {
     pub owner: Option<String>,
     /// The worker running it, or that ran it last.
     pub worker: Option<String>,
+    /// The stored state it starts from (a job submitted with `from`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub from: Option<StartView>,
     pub progress: Progress,
     pub metrics: Option<serde_json::Value>,
     pub failure: Option<serde_json::Value>,
     pub links: Links,
+}
+
+/// Where a job starts: another job's stored state.
+#[derive(Debug, Serialize)]
+pub struct StartView {
+    /// The job whose store holds the state.
+    pub job: String,
+    /// The stage the run starts at, from the end of the stage before (a staged scene);
+    /// absent: from that job's latest checkpoint.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stage: Option<String>,
+    /// The simulated time it starts at.
+    pub time: f64,
 }
 
 /// Progress of a job.
@@ -61,6 +84,8 @@ pub struct JobView {
 pub struct Progress {
     pub steps: i64,
     pub time: f64,
+    /// The simulated time the run started at (not 0 for a job started from another's state).
+    pub start_time: f64,
     pub end_time: f64,
     pub fraction: f64,
     pub wall_seconds: f64,
@@ -98,7 +123,11 @@ impl JobRow {
         let fraction = if self.status == "succeeded" {
             1.0
         } else {
-            (self.sim_time / self.end_time).clamp(0.0, 1.0)
+            let span = self.end_time - self.start_time;
+            match self.sim_time > self.start_time && span > 0.0 {
+                true => ((self.sim_time - self.start_time) / span).clamp(0.0, 1.0),
+                false => 0.0,
+            }
         };
         let eta = (self.status == "running" && fraction > 0.0)
             .then(|| self.wall_seconds * (1.0 - fraction) / fraction);
@@ -114,9 +143,15 @@ impl JobRow {
             attempts: self.attempts,
             owner: self.owner.clone(),
             worker: self.worker.clone(),
+            from: self.from_job.as_ref().map(|job| StartView {
+                job: job.clone(),
+                stage: self.from_stage.clone(),
+                time: self.start_time,
+            }),
             progress: Progress {
                 steps: self.step,
                 time: self.sim_time,
+                start_time: self.start_time,
                 end_time: self.end_time,
                 fraction,
                 wall_seconds: self.wall_seconds,

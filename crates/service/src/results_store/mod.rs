@@ -17,6 +17,9 @@ use std::path::{Path, PathBuf};
 /// A job's store folder inside its job folder.
 pub(crate) const RESULTS: &str = "results.zarr";
 
+/// The folder name, in a job's folder, of the stored state it starts from (S3 stores).
+const START: &str = "start.zarr";
+
 /// Where the result stores are, as given to `--store`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum StoreLocation {
@@ -234,6 +237,25 @@ impl ResultsStore {
             Self::S3(s) => {
                 let (path, temp) = s.local_copy(id, ended).await?;
                 Ok(LocalCopy { path, _temp: temp })
+            }
+        }
+    }
+
+    /// The group `group` of job `source`'s store as a local store for job `id` to start
+    /// from: the source's own folder for a folder of stores; for S3, its root `zarr.json` and
+    /// that group downloaded into `id`'s folder (`start.zarr`, removed with it).
+    pub async fn start_state(
+        &self,
+        id: &str,
+        source: &str,
+        group: &str,
+    ) -> Result<PathBuf, StoreError> {
+        match self {
+            Self::Local(_) => Ok(self.results_dir(source)),
+            Self::S3(s) => {
+                let dir = self.job_dir(id).join(START);
+                s.fetch_group(source, group, &dir).await?;
+                Ok(dir)
             }
         }
     }

@@ -151,6 +151,24 @@ impl S3Store {
         })
     }
 
+    /// The root `zarr.json` and the objects under the group `group` of job `source`'s store,
+    /// downloaded into the folder `dir` (a store holding only that group, for a job that
+    /// starts from it).
+    pub async fn fetch_group(
+        &self,
+        source: &str,
+        group: &str,
+        dir: &Path,
+    ) -> Result<usize, StoreError> {
+        remove_dir(dir).await?;
+        let below = format!("{group}/");
+        let got = fetch(&self.client, &self.base(source), dir, |key| {
+            key == "zarr.json" || key.starts_with(&below)
+        })
+        .await?;
+        Ok(got.len())
+    }
+
     /// A job's store (without its checkpoints) in a local folder: kept in the render cache
     /// for a job that has ended, a temporary folder (removed with the returned guard) for one
     /// that may still change.

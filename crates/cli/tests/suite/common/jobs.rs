@@ -31,6 +31,43 @@ pub fn submit_long_then_small(url: &str, long: &Value, small: &Value, count: usi
     ids
 }
 
+/// The vibrating bar in three stages (to 0.1 s; to 0.2 s with PIC; to 0.3 s), 4 frames each,
+/// every stage keeping the state it ended with, so a job can start at any later stage.
+pub fn staged_bar() -> Value {
+    let mut scene = super::bar_json();
+    scene["name"] = json!("bar-stages");
+    scene["output"]["frames"] = json!(4);
+    scene["output"]["end_state"] = json!(true);
+    scene["stages"] = json!([
+        {"name": "first", "changes": {"solver": {"end_time": 0.1}}},
+        {"name": "second", "changes": {"solver": {"end_time": 0.2, "transfer": "pic"}}},
+        {"name": "third", "changes": {"solver": {"end_time": 0.3}}}
+    ]);
+    scene
+}
+
+/// Asserts the stage `stage` of the stores at `a` and `b` has the same frame times and
+/// positions, velocities and stresses, bit for bit.
+pub fn assert_same_stage_frames(a: &std::path::Path, b: &std::path::Path, stage: &str) {
+    let open = |p: &std::path::Path| mpm_io::ResultStore::open(p).unwrap().stage(stage).unwrap();
+    let (a, b) = (open(a), open(b));
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    assert_eq!(
+        bits(&a.times().unwrap()),
+        bits(&b.times().unwrap()),
+        "{stage}"
+    );
+    for frame in 0..a.frame_count().unwrap() {
+        for field in ["x", "v", "stress"] {
+            assert_eq!(
+                bits(&a.frame(field, frame).unwrap().1),
+                bits(&b.frame(field, frame).unwrap().1),
+                "{stage}: {field} differs at frame {frame}"
+            );
+        }
+    }
+}
+
 /// A client for the API (requests give up after a minute).
 pub fn api_client() -> reqwest::blocking::Client {
     http_client(60)
@@ -38,8 +75,14 @@ pub fn api_client() -> reqwest::blocking::Client {
 
 /// Submits `scene` (must be accepted: 202) and returns the job's id.
 pub fn submit_job(url: &str, scene: &Value) -> String {
+    submit_job_from(url, "", scene)
+}
+
+/// Submits `scene` with the query `query` (`?from=JOB[&stage=NAME]`, or empty); it must be
+/// accepted (202). Returns the job's id.
+pub fn submit_job_from(url: &str, query: &str, scene: &Value) -> String {
     let r = api_client()
-        .post(format!("{url}/v1/jobs"))
+        .post(format!("{url}/v1/jobs{query}"))
         .json(scene)
         .send()
         .unwrap();
