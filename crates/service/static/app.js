@@ -195,6 +195,14 @@ function kvRows(table, pairs) {
   );
 }
 
+// Where a job submitted with `from` started: the job, the stage and the simulated time.
+function startedFrom(job) {
+  const f = job.from;
+  if (!f) return null;
+  const stage = f.stage ? `, at stage ${f.stage}` : ", its latest checkpoint";
+  return `job ${f.job}${stage} (t = ${fmt(f.time)} s)`;
+}
+
 function showMetrics(job) {
   const m = job.metrics || {};
   kvRows($("job-metrics"), [
@@ -212,6 +220,7 @@ function showMetrics(job) {
     ["reference value", m.reference_value],
     ["measured value", m.measured_value],
     ["resumed from step", m.resumed_from_step],
+    ["started from", startedFrom(job)],
     ["worker", job.worker],
     ["attempts", job.attempts],
   ]);

@@ -276,3 +276,39 @@ fn a_plain_job_takes_over_a_finished_jobs_checkpoint() {
         .unwrap();
     assert!(cancelled.status().is_success());
 }
+
+#[test]
+fn the_step_bound_counts_only_the_stages_a_job_runs() {
+    let data = tempfile::tempdir().unwrap();
+    let start = |extra: &[&str]| {
+        let (child, url) = serve(
+            Command::new(env!("CARGO_BIN_EXE_mpm"))
+                .args(["serve", "--listen", "127.0.0.1:0", "--data"])
+                .arg(data.path())
+                .args(extra),
+        );
+        (Process(child), url)
+    };
+    // The whole three-stage bar (about 1,100 steps per simulated second, 0.3 s) runs on a
+    // server without a bound ...
+    let (mut first, url) = start(&[]);
+    let scene = staged_bar();
+    let whole = run_job(&url, "", &scene);
+    let whole_id = whole["id"].as_str().unwrap().to_string();
+    first.kill();
+    // ... and a server over the same data with a bound of 150 steps refuses it whole and from
+    // `second` (two of its three stages), but takes it from `third`.
+    let (_second, url) = start(&["--max-steps", "150"]);
+    let steps_refused = |query: &str| {
+        let (code, answer) = submit(&url, query, &scene);
+        assert_eq!(code, 422, "{query}: {answer}");
+        assert!(
+            answer.to_string().contains("--max-steps"),
+            "{query}: {answer}"
+        );
+    };
+    steps_refused("");
+    steps_refused(&format!("?from={whole_id}&stage=second"));
+    let third = run_job(&url, &format!("?from={whole_id}&stage=third"), &scene);
+    assert_eq!(third["metrics"]["stages"].as_array().unwrap().len(), 3);
+}

@@ -381,13 +381,34 @@ pub fn estimated_steps(scene: &ValidatedScene) -> f64 {
     if scene.stages.is_empty() {
         return dispatch(scene, Steps);
     }
-    // Each stage's share of its own estimate (which runs from time 0 to its end).
-    let mut start = 0.0;
+    estimated_stage_steps(scene, 0, |stage| dispatch(stage, Steps))
+}
+
+/// Steps a staged scene would take from its stage `first` on (a run started at that stage
+/// from a stored state), each stage's share of its own estimate; a plain scene's whole
+/// estimate.
+pub fn estimated_steps_from(scene: &ValidatedScene, first: usize) -> f64 {
+    if scene.stages.is_empty() || first == 0 {
+        return estimated_steps(scene);
+    }
+    estimated_stage_steps(scene, first, estimated_steps)
+}
+
+/// The stages' shares from stage `first` on: `steps` estimates a stage's scene run from time
+/// 0 to its end, of which the stage runs the part from the end of the stage before.
+fn estimated_stage_steps(
+    scene: &ValidatedScene,
+    first: usize,
+    steps: impl Fn(&ValidatedScene) -> f64,
+) -> f64 {
     let mut total = 0.0;
-    for stage in &scene.stages {
+    for (i, stage) in scene.stages.iter().enumerate().skip(first) {
+        let start = match i {
+            0 => 0.0,
+            _ => scene.stages[i - 1].scene.scene.solver.end_time,
+        };
         let end = stage.scene.scene.solver.end_time;
-        total += dispatch(&stage.scene, Steps) * (end - start) / end;
-        start = end;
+        total += steps(&stage.scene) * (end - start) / end;
     }
     total
 }

@@ -195,6 +195,8 @@ async fn validate_within_budget(
         if let Some(source) = &source {
             checked.stage_index = submit_from::check_scenes(source, &checked.validated, &registry)?;
         }
+        let first = checked.stage_index.unwrap_or(0);
+        check_steps(&checked.validated, first, bounds.max_steps)?;
         Ok((checked, source))
     });
     match tokio::time::timeout_at(deadline, task).await {
@@ -236,8 +238,40 @@ fn grid_bytes_per_node(dimension: u8) -> f64 {
     8.0 * (1.0 + 3.0 * f64::from(dimension))
 }
 
+/// Checks the time steps a job would take against the server's bound (`--max-steps`): a
+/// staged scene's stages from `first` on (the stage a job starts at from a stored state).
+fn check_steps(
+    validated: &mpm_core::scene::ValidatedScene,
+    first: usize,
+    max: Option<u64>,
+) -> Result<(), ApiError> {
+    let Some(max) = max else { return Ok(()) };
+    let steps = mpm_core::solver::estimated_steps_from(validated, first);
+    if steps <= max as f64 {
+        return Ok(());
+    }
+    let path = if validated.scene.solver.dt.is_some() {
+        "solver.dt"
+    } else {
+        "solver.end_time"
+    };
+    let mut e = ApiError::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "invalid_scene",
+        "the scene is invalid; see `problems`",
+    );
+    e.problems = vec![Problem {
+        path: path.into(),
+        message: format!(
+            "the run would take about {steps:.3e} time steps (end_time over the initial step); \
+             this server accepts at most {max} per job (--max-steps)"
+        ),
+    }];
+    Err(e)
+}
+
 /// Validates a submitted scene exactly as `mpm validate` does, then against the service's
-/// bounds (particles, grid bytes, steps); particle files are refused (a request must not read
+/// bounds (particles, grid bytes; the steps are [`check_steps`]'s); particle files are refused (a request must not read
 /// files of the server).
 fn check_scene(
     value: serde_json::Value,
@@ -314,23 +348,6 @@ fn check_scene(
             other => ("$".to_string(), other.to_string()),
         };
         return Err(invalid(vec![Problem { path, message }]));
-    }
-    if let Some(max) = bounds.max_steps {
-        let steps = mpm_core::solver::estimated_steps(&validated);
-        if steps > max as f64 {
-            let path = if validated.scene.solver.dt.is_some() {
-                "solver.dt"
-            } else {
-                "solver.end_time"
-            };
-            return Err(invalid(vec![Problem {
-                path: path.into(),
-                message: format!(
-                    "the run would take about {steps:.3e} time steps (end_time over the initial \
-                     step); this server accepts at most {max} per job (--max-steps)"
-                ),
-            }]));
-        }
     }
     Ok(CheckedScene {
         stage_index: None,
