@@ -85,6 +85,20 @@ pub struct StepArgs {
     /// from particles at least a cell inside, whose grid nodes are full).
     #[arg(long)]
     pub surface_samples: bool,
+    /// How samples are picked: `farthest` spreads them over the body (farthest-point
+    /// sampling); `greedy` picks them from the modes, each making the projection's normal
+    /// matrix best conditioned.
+    #[arg(long, value_enum, default_value_t = SamplingArg::Farthest)]
+    pub sampling: SamplingArg,
+}
+
+/// `--sampling` of a reduced run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SamplingArg {
+    /// Farthest-point sampling over the body.
+    Farthest,
+    /// Greedy, from the map's modes (D-optimal design).
+    Greedy,
 }
 
 impl StepArgs {
@@ -94,6 +108,10 @@ impl StepArgs {
             time_step_scale: self.dt_scale,
             margin: self.margin,
             interior_samples: !self.surface_samples,
+            sampling: match self.sampling {
+                SamplingArg::Farthest => mpm_rom::reduced_run::Sampling::FarthestPoint,
+                SamplingArg::Greedy => mpm_rom::reduced_run::Sampling::Greedy,
+            },
             ..RunOptions::default()
         }
     }
@@ -266,6 +284,7 @@ pub fn run(command: RomCommand, registry: &Registry) -> anyhow::Result<ExitStatu
                 },
                 None => None,
             };
+            warn_on_sample_condition(&metrics);
             if json {
                 outln!(
                     "{}",
@@ -325,6 +344,27 @@ fn run_one(
     result
 }
 
+/// Above this condition number of the samples' normal matrix a reduced run warns: a misfit
+/// can grow a hundredfold into one coordinate.
+const SAMPLE_CONDITION_WARNING: f64 = 1e4;
+
+/// Warns on stderr when the samples' normal matrix is worse conditioned than
+/// [`SAMPLE_CONDITION_WARNING`].
+fn warn_on_sample_condition(m: &Metrics) {
+    let condition = m
+        .physics
+        .get("rom.sample_condition")
+        .copied()
+        .unwrap_or(0.0);
+    if condition > SAMPLE_CONDITION_WARNING {
+        eprintln!(
+            "warning: the samples barely see a coordinate (condition number {condition:.1e} > \
+             {SAMPLE_CONDITION_WARNING:.0e}): the projection can blow a misfit up into it; use \
+             more samples, a smaller latent size, or --sampling greedy"
+        );
+    }
+}
+
 fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow::Result<()> {
     let get = |k: &str| m.physics.get(k).copied().unwrap_or(f64::NAN);
     outln!(
@@ -352,6 +392,11 @@ fn print_run(m: &Metrics, store: &Path, error: Option<&PositionError>) -> anyhow
     if !parts.is_empty() {
         outln!("where the time went: {}", parts.join(", "))?;
     }
+    let condition = get("rom.sample_condition");
+    if condition.is_finite() {
+        outln!("samples' condition number (normal matrix of the projection): {condition:.3e}")?;
+    }
+
     if let Some(d) = &m.diagnostic {
         outln!(
             "stopped at step {} (t = {} s): {}",
@@ -426,6 +471,10 @@ pub struct RomRow {
     pub error_to_displacement: Option<f64>,
     /// Mean quadrature particles per step.
     pub quadrature_points: f64,
+    /// The largest condition number of the projection's normal matrix at the samples over
+    /// the held-out runs (`rom.sample_condition`): large when the samples barely see a
+    /// coordinate.
+    pub sample_condition: f64,
     /// `finished`, `stopped`, or the failure.
     pub outcome: String,
 }
@@ -556,13 +605,14 @@ fn study(args: &StudyArgs, registry: &Registry) -> anyhow::Result<ExitStatus> {
             );
             outln!(
                 "latent {:>3}  samples {:>5}  {:>9.3} s/sim-s  speed-up {:>7.2}  error {:>10}  \
-                 (to displacement {:>10})  {}",
+                 (to displacement {:>10})  condition {:>9.2e}  {}",
                 row.latent,
                 row.samples,
                 row.wall_per_simulated_second,
                 row.speedup,
                 fmt(row.error),
                 fmt(row.error_to_displacement),
+                row.sample_condition,
                 row.outcome
             )?;
             rows.push(row);
@@ -600,6 +650,7 @@ fn study_row(
     full_rate: f64,
 ) -> RomRow {
     let (mut wall, mut simulated, mut quadrature) = (0.0, 0.0, 0.0);
+    let mut condition = 0.0f64;
     let mut errors = Vec::new();
     let mut outcome = String::from("finished");
     for h in held_out {
@@ -620,6 +671,8 @@ fn study_row(
                     .copied()
                     .unwrap_or(0.0)
                     / held_out.len() as f64;
+                let c = m.physics.get("rom.sample_condition").copied();
+                condition = condition.max(c.unwrap_or(f64::NAN));
                 if m.outcome != Some(Outcome::Finished) {
                     outcome =
                         format!("{:?}", m.outcome.unwrap_or(Outcome::Finished)).to_lowercase();
@@ -651,6 +704,7 @@ fn study_row(
         error: error.map(|e| e.relative),
         error_to_displacement: error.map(|e| e.relative_to_displacement),
         quadrature_points: quadrature,
+        sample_condition: condition,
         outcome,
     }
 }
@@ -662,11 +716,11 @@ fn fmt(v: Option<f64>) -> String {
 fn write_study(dir: &Path, rows: &[RomRow], full_rate: f64, held_out: usize) -> anyhow::Result<()> {
     let mut csv = String::from(
         "latent,samples,wall_seconds,wall_per_simulated_second,speedup,error,\
-         error_to_displacement,quadrature_points,outcome\n",
+         error_to_displacement,quadrature_points,sample_condition,outcome\n",
     );
     for r in rows {
         csv.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{}\n",
             r.latent,
             r.samples,
             r.wall_seconds,
@@ -676,6 +730,7 @@ fn write_study(dir: &Path, rows: &[RomRow], full_rate: f64, held_out: usize) -> 
             r.error_to_displacement
                 .map_or(String::new(), |v| v.to_string()),
             r.quadrature_points,
+            r.sample_condition,
             r.outcome.replace(',', ";")
         ));
     }

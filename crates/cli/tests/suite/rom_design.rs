@@ -99,6 +99,66 @@ fn a_latin_hypercube_design_trains_a_model_studied_on_its_held_out_runs() {
     }
     let png = std::fs::read(d.join("study/rom-study.png")).unwrap();
     assert_eq!(&png[..4], b"\x89PNG");
+
+    // Eight coordinates from four samples (eight equations in 2D): spread over the body, the
+    // samples barely see some coordinate (condition number 5.9e5 measured), the run warns and
+    // the map inverts within a few steps; picked from the modes (`--sampling greedy`) their
+    // normal matrix is far better conditioned (979 measured) and the run lasts longer.
+    run(&[
+        "rom",
+        "train",
+        "--runs",
+        "design/train",
+        "--latent",
+        "8",
+        "--out",
+        "m8.safetensors",
+    ]);
+    let reduced = |sampling: &str| {
+        let held_out = "design/test/rom-tower-2d-test-0.json";
+        let args = [
+            "rom",
+            "run",
+            held_out,
+            "--model",
+            "m8.safetensors",
+            "--samples",
+            "4",
+        ];
+        let o = mpm(
+            &[
+                &args[..],
+                &["--sampling", sampling, "--out", sampling, "--json"],
+            ]
+            .concat(),
+            d,
+        );
+        let metrics: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let condition = metrics["metrics"]["physics"]["rom.sample_condition"]
+            .as_f64()
+            .unwrap();
+        (
+            condition,
+            metrics["metrics"]["steps"].as_u64().unwrap(),
+            text(&o),
+        )
+    };
+    let (spread, spread_steps, spread_text) = reduced("farthest");
+    let (greedy, greedy_steps, greedy_text) = reduced("greedy");
+    assert!(spread > 1e4, "{spread}: {spread_text}");
+    assert!(
+        spread_text.contains("barely see a coordinate"),
+        "{spread_text}"
+    );
+    assert!(
+        greedy < spread / 100.0,
+        "{greedy} against {spread}: {greedy_text}"
+    );
+    assert!(!greedy_text.contains("barely see"), "{greedy_text}");
+    assert!(
+        greedy_steps > 10 * spread_steps,
+        "{greedy_steps} against {spread_steps}"
+    );
 }
 
 #[test]

@@ -16,14 +16,16 @@ mod frame;
 mod options;
 mod projection;
 mod sampling;
+mod sampling_greedy;
 mod setup;
 mod stage_clock;
 mod step;
 mod stress;
 mod time_loop;
 
-pub use options::{REDUCED_FIELDS, RunOptions};
+pub use options::{REDUCED_FIELDS, RunOptions, Sampling};
 pub use sampling::{farthest_point_samples, interior_particles};
+pub use sampling_greedy::{greedy_samples, sample_condition};
 pub use stage_clock::ROM_STAGES;
 
 use crate::{Model, RomError};
@@ -35,8 +37,9 @@ use mpm_core::solver::{DimensionDispatch, RunObserver, Simulation, SimulationVis
 use setup::Reduced;
 
 /// Runs `scene` with `model` and writes its frames to `sink`. The metrics carry
-/// `rom.samples`, `rom.latent`, `rom.candidates` and `rom.quadrature_points` (mean per step)
-/// under `physics`.
+/// `rom.samples`, `rom.latent`, `rom.candidates`, `rom.quadrature_points` (mean per step)
+/// and `rom.sample_condition` (of the projection's normal matrix at the start) under
+/// `physics`.
 pub fn run_reduced(
     scene: &ValidatedScene,
     model: &Model,

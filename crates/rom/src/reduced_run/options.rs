@@ -15,6 +15,20 @@ pub struct RunOptions {
     /// Sample only particles at least a cell inside the body (see
     /// [`interior_particles`](super::sampling::interior_particles)).
     pub interior_samples: bool,
+    /// How the samples are picked among the eligible particles.
+    pub sampling: Sampling,
+}
+
+/// How a reduced run picks its sampled particles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Sampling {
+    /// Spread over the body: farthest-point sampling in the reference configuration.
+    #[default]
+    FarthestPoint,
+    /// Chosen from the map's modes: each pick makes the projection's normal matrix best
+    /// conditioned (greedy D-optimal design, see
+    /// [`greedy_samples`](super::sampling_greedy::greedy_samples)).
+    Greedy,
 }
 
 impl Default for RunOptions {
@@ -25,6 +39,7 @@ impl Default for RunOptions {
             margin: 1.0,
             projection_iterations: 3,
             interior_samples: true,
+            sampling: Sampling::FarthestPoint,
         }
     }
 }

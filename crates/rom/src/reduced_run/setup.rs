@@ -2,8 +2,9 @@
 //! and their candidate neighbourhood, the run's fixed settings and the scratch buffers of
 //! steps and frames, all sized once.
 
-use super::options::RunOptions;
+use super::options::{RunOptions, Sampling};
 use super::sampling::{farthest_point_samples, interior_particles};
+use super::sampling_greedy::{greedy_samples, sample_condition};
 use crate::map::PointMap;
 use crate::{Model, ModelKind, RomError};
 use mpm_core::kernels::Kernel;
@@ -88,6 +89,8 @@ pub(super) struct Reduced<'m, const D: usize, K: Kernel> {
     pub(super) clock: super::stage_clock::RomClock,
     pub(super) stats: StepStats,
     pub(super) frame_strain: f64,
+    /// Condition number of the projection's normal matrix at the samples, at the start.
+    pub(super) sample_condition: f64,
 }
 
 impl<'m, const D: usize, K: Kernel> Reduced<'m, D, K>
@@ -114,7 +117,7 @@ where
             .iter()
             .flat_map(|x| x.iter().copied())
             .collect();
-        let map = model.map().bind(&reference)?;
+        let mut map = model.map().bind(&reference)?;
         let latent = model.info.latent;
         let dx = sim.grid.dx;
         let eligible = if options.interior_samples {
@@ -122,8 +125,21 @@ where
         } else {
             (0..n).collect()
         };
-        let samples =
-            farthest_point_samples::<D>(&sim.particles.position, &eligible, options.samples);
+        let q0 = &model.info.initial_latent;
+        let samples = match options.sampling {
+            Sampling::FarthestPoint => {
+                farthest_point_samples::<D>(&sim.particles.position, &eligible, options.samples)
+            }
+            Sampling::Greedy => {
+                let which: Vec<u32> = eligible.iter().map(|&p| p as u32).collect();
+                let mut jacobians = vec![0.0; which.len() * D * latent];
+                map.jacobians(q0, &which, &mut jacobians)?;
+                greedy_samples(&jacobians, &eligible, D, latent, options.samples)
+            }
+        };
+        let mut sample_jacobians = vec![0.0; samples.len() * D * latent];
+        map.jacobians(q0, &samples, &mut sample_jacobians)?;
+        let condition = sample_condition(&sample_jacobians, D, latent);
         // Candidates: particles within the kernel's reach (plus the margin) of a sample in the
         // reference configuration; each step keeps those whose stencil meets a sample's.
         let reach = (K::SPAN as f64 + options.margin) * dx;
@@ -225,6 +241,7 @@ where
             clock: Default::default(),
             stats: StepStats::default(),
             frame_strain: 0.0,
+            sample_condition: condition,
             sim,
         })
     }

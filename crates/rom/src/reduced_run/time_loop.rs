@@ -98,6 +98,9 @@ where
         physics.insert("rom.samples".to_string(), self.samples.len() as f64);
         physics.insert("rom.latent".to_string(), self.latent as f64);
         physics.insert("rom.candidates".to_string(), self.candidates.len() as f64);
+        // An unseen coordinate makes it infinite; JSON has no infinity.
+        let condition = self.sample_condition.min(1e300);
+        physics.insert("rom.sample_condition".to_string(), condition);
         physics.insert(
             "rom.quadrature_points".to_string(),
             self.quadrature_total / steps.max(1) as f64,
