@@ -13,6 +13,18 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+/// `mpm serve` on a free port over the data folder `data`, with `extra` options; the
+/// process (killed when dropped) and its URL.
+fn start_server(data: &Path, extra: &[&str]) -> (Process, String) {
+    let (child, url) = serve(
+        Command::new(env!("CARGO_BIN_EXE_mpm"))
+            .args(["serve", "--listen", "127.0.0.1:0", "--data"])
+            .arg(data)
+            .args(extra),
+    );
+    (Process(child), url)
+}
+
 fn submit(url: &str, query: &str, scene: &Value) -> (u16, Value) {
     let r = http_client(60)
         .post(format!("{url}/v1/jobs{query}"))
@@ -69,12 +81,7 @@ fn fetch(url: &str, id: &str, out: &Path, name: &str) -> mpm_io::ResultStore {
 #[test]
 fn a_job_starts_at_a_later_stage_of_another_jobs_store() {
     let data = tempfile::tempdir().unwrap();
-    let (child, url) = serve(
-        Command::new(env!("CARGO_BIN_EXE_mpm"))
-            .args(["serve", "--listen", "127.0.0.1:0", "--data"])
-            .arg(data.path()),
-    );
-    let _server = Process(child);
+    let (_server, url) = start_server(data.path(), &[]);
     let scene = staged_bar();
     let whole = run_job(&url, "", &scene);
     let whole_id = whole["id"].as_str().unwrap();
@@ -217,12 +224,7 @@ fn a_job_starts_at_a_later_stage_of_another_jobs_store() {
 #[test]
 fn a_plain_job_takes_over_a_finished_jobs_checkpoint() {
     let data = tempfile::tempdir().unwrap();
-    let (child, url) = serve(
-        Command::new(env!("CARGO_BIN_EXE_mpm"))
-            .args(["serve", "--listen", "127.0.0.1:0", "--data"])
-            .arg(data.path()),
-    );
-    let _server = Process(child);
+    let (_server, url) = start_server(data.path(), &[]);
     let mut first = bar_json();
     first["solver"]["end_time"] = json!(0.1);
     first["output"]["frames"] = json!(2);
@@ -280,15 +282,7 @@ fn a_plain_job_takes_over_a_finished_jobs_checkpoint() {
 #[test]
 fn the_step_bound_counts_only_the_stages_a_job_runs() {
     let data = tempfile::tempdir().unwrap();
-    let start = |extra: &[&str]| {
-        let (child, url) = serve(
-            Command::new(env!("CARGO_BIN_EXE_mpm"))
-                .args(["serve", "--listen", "127.0.0.1:0", "--data"])
-                .arg(data.path())
-                .args(extra),
-        );
-        (Process(child), url)
-    };
+    let start = |extra: &[&str]| start_server(data.path(), extra);
     // The whole three-stage bar (about 1,100 steps per simulated second, 0.3 s) runs on a
     // server without a bound ...
     let (mut first, url) = start(&[]);
