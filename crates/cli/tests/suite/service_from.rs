@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use common::jobs::{assert_same_stage_frames, staged_bar};
+use common::jobs::{assert_same_stage_frames, staged_bar, wait_for_all};
 use common::*;
 use serde_json::{Value, json};
 use std::path::Path;
@@ -34,35 +34,21 @@ fn submit(url: &str, query: &str, scene: &Value) -> (u16, Value) {
     (r.status().as_u16(), r.json().unwrap_or(Value::Null))
 }
 
-fn job(url: &str, id: &str) -> Value {
-    http_client(60)
-        .get(format!("{url}/v1/jobs/{id}"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap()
-}
-
-fn wait_final(url: &str, id: &str) -> Value {
-    let start = Instant::now();
-    loop {
-        let j = job(url, id);
-        if matches!(
-            j["status"].as_str(),
-            Some("succeeded" | "failed" | "cancelled")
-        ) {
-            return j;
-        }
-        assert!(start.elapsed() < Duration::from_secs(120), "{id}: {j}");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
 /// Submits and waits; the job, which must have succeeded.
 fn run_job(url: &str, query: &str, scene: &Value) -> Value {
     let (code, body) = submit(url, query, scene);
     assert_eq!(code, 202, "{body}");
-    let done = wait_final(url, body["id"].as_str().unwrap());
+    let id = body["id"].as_str().unwrap().to_string();
+    let limit = Duration::from_secs(120);
+    let done = wait_for_all(
+        url,
+        std::slice::from_ref(&id),
+        Instant::now(),
+        limit,
+        String::new,
+    )
+    .remove(&id);
+    let done = done.unwrap();
     assert_eq!(done["status"], "succeeded", "{done}");
     done
 }
