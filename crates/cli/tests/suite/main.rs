@@ -22,6 +22,7 @@ mod fuzz;
 mod held_bodies;
 mod hertz;
 mod implicit;
+mod implicit_capillarity;
 mod johnson_cook;
 mod layered_stack;
 mod liquid;

@@ -90,16 +90,6 @@ fn surface_tension_is_checked() {
             .any(|i| i.starts_with("bodies[0].velocity.affine.gradient")),
         "{issues:?}"
     );
-    let issues = invalid_example(
-        "liquid-drop.json",
-        &[r#"solver.mechanics={"incompressible": {"viscosity": "implicit"}}"#],
-    );
-    assert!(
-        issues
-            .iter()
-            .any(|i| i.starts_with("solver.mechanics.incompressible.viscosity")),
-        "{issues:?}"
-    );
     let issues = invalid_example("liquid-drop.json", &["reference.radius=0"]);
     assert!(
         issues.iter().any(|i| i.starts_with("reference.radius")),

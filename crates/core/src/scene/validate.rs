@@ -473,15 +473,6 @@ impl Validator {
                 }
             }
         }
-        if let (Some((name, _)), Mechanics::Incompressible(settings)) =
-            (tension, &s.solver.mechanics)
-            && settings.viscosity == crate::scene::ViscousIntegration::Implicit
-        {
-            self.err(
-                "solver.mechanics.incompressible.viscosity",
-                format!("implicit viscosity does not go with surface tension yet (`{name}` has one): its incremental projection holds p = 0 on the free surface, where surface tension sets σκ; use \"explicit\""),
-            );
-        }
         for (name, m) in used_materials() {
             let liquid = m.liquid_viscosity().is_some();
             if liquid && !incompressible && s.solver.mechanics != Mechanics::Off {

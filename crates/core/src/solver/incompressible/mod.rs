@@ -529,6 +529,15 @@ impl<const D: usize> Incompressible<D> {
                 &mut self.pressure,
             );
             sim.surface_energy = surface.energy(&sim.grid, &self.open);
+            // The incremental projection (implicit viscosity) solves for the change from the
+            // total pressure it kept: the free surface's increment is σ·κ less that.
+            if let Some(viscosity) = &self.viscosity {
+                for (i, p) in self.pressure.iter_mut().enumerate() {
+                    if self.inverse_diagonal[i] <= 0.0 && surface.touches_liquid(i) {
+                        *p -= viscosity.last_pressure(i);
+                    }
+                }
+            }
         }
         // Pressure inlets hold their face at the reservoir's pressure (pressure_inlet.rs);
         // the incremental projection solves for the change from the pressure it kept there.
@@ -565,8 +574,14 @@ impl<const D: usize> Incompressible<D> {
             }
             // The incremental projection (implicit viscosity) keeps a pocket's last total
             // pressure in its nodes: their increment is the new total less that.
+            // (A pocket's surface nodes had it taken off with the surface tension's, above.)
             if let Some(viscosity) = &self.viscosity {
-                air.for_each_tied(|i| self.pressure[i] -= viscosity.last_pressure(i));
+                let surface = self.surface.as_ref();
+                air.for_each_tied(|i| {
+                    if !surface.is_some_and(|s| s.touches_liquid(i)) {
+                        self.pressure[i] -= viscosity.last_pressure(i);
+                    }
+                });
             }
             let (cell_volume, cell_mass) = (&self.cell_volume, &self.cell_mass);
             air.fill_rows(
@@ -645,7 +660,7 @@ impl<const D: usize> Incompressible<D> {
     }
 
     /// With implicit viscosity the projection solved for the pressure increment: adds the
-    /// last pressure back (0 on the free surface) and keeps the total pressure's velocity
+    /// last pressure back (on the free surface σ·κ with surface tension, else 0) and keeps the total pressure's velocity
     /// change per unit time, -(1/M_i) Σ_c ∫_c N_i ∇p (extrapolated as the projection's), for
     /// the next step's viscous solve (see viscosity.rs). Nothing with explicit viscosity.
     fn incremental_pressure(&mut self, grid: &crate::grid::Grid<D>) {
@@ -659,9 +674,11 @@ impl<const D: usize> Incompressible<D> {
                 *p -= q;
             }
         }
-        let (air, held) = (self.air.as_ref(), &self.is_held);
+        let (air, held, surface) = (self.air.as_ref(), &self.is_held, self.surface.as_ref());
         viscosity.total_pressure(&mut self.pressure, &self.inverse_diagonal, |i| {
-            air.is_some_and(|a| a.is_tied(i)) || held[i]
+            air.is_some_and(|a| a.is_tied(i))
+                || held[i]
+                || surface.is_some_and(|s| s.touches_liquid(i))
         });
         self.pressure_correction(1.0, grid.dx);
         extrapolate::extrapolate_correction(grid, &mut self.correction, &mut self.layer);

@@ -145,6 +145,12 @@ impl<const D: usize> SurfaceTension<D> {
         }
     }
 
+    /// Whether node `i` touched a liquid cell at the last [`Self::surface_pressure`]: with
+    /// the free-surface nodes' `inverse_diagonal` 0, the nodes it gave σ·κ.
+    pub(super) fn touches_liquid(&self, i: usize) -> bool {
+        self.touches_liquid.get(i).copied().unwrap_or(false)
+    }
+
     /// Sizes the per-node arrays for `grid` (once).
     pub(super) fn size_for(&mut self, grid: &Grid<D>) {
         let n = grid.len();

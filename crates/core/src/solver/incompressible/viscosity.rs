@@ -334,7 +334,8 @@ impl<const D: usize> ImplicitViscosity<D> {
     }
 
     /// The total pressure p^n + Δp on the nodes the projection solved for (`free` > 0) and
-    /// those `kept` (an enclosed-air pocket's); 0 on the free surface.
+    /// those `kept` (an enclosed-air pocket's, a pressure inlet's, and with surface tension
+    /// the free surface's, where it is σ·κ); 0 on the rest of the free surface.
     pub(super) fn total_pressure(
         &self,
         pressure: &mut [f64],
