@@ -660,9 +660,10 @@ impl<const D: usize> Incompressible<D> {
     }
 
     /// With implicit viscosity the projection solved for the pressure increment: adds the
-    /// last pressure back (on the free surface σ·κ with surface tension, else 0) and keeps the total pressure's velocity
-    /// change per unit time, -(1/M_i) Σ_c ∫_c N_i ∇p (extrapolated as the projection's), for
-    /// the next step's viscous solve (see viscosity.rs). Nothing with explicit viscosity.
+    /// last pressure back (on the free surface σ·κ with surface tension, else 0) and keeps
+    /// the total pressure's velocity change per unit time, -(1/M_i) Σ_c ∫_c N_i ∇p
+    /// (extrapolated as the projection's), for the next step's viscous solve (see
+    /// viscosity.rs). Nothing with explicit viscosity.
     fn incremental_pressure(&mut self, grid: &crate::grid::Grid<D>) {
         let Some(viscosity) = self.viscosity.as_mut() else {
             return;
