@@ -336,8 +336,12 @@ where
     }
 
     /// The surface energy at the start: the colour of a P2G of the particles' mass.
+    /// With implicit viscosity, the particles' viscosities too (they bound the first step).
     fn measure_stored_energy(&mut self, sim: &mut Simulation<D, K>) {
         self.prepare(&sim.grid, &sim.boundaries, &sim.particles.groups);
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.measure_viscosities(sim);
+        }
         let Some(surface) = self.surface.as_mut() else {
             return;
         };
@@ -384,7 +388,8 @@ fn convective_step<const D: usize, K: Kernel>(sim: &Simulation<D, K>) -> f64 {
 
 impl<const D: usize> Incompressible<D> {
     /// The liquid's own step bounds before `cfl`: the explicit viscous limit ρdx²/(2Dμ)
-    /// (explicit viscosity only) and the capillary one (surface_tension.rs).
+    /// (explicit viscosity only) and the capillary one (surface_tension.rs), which with
+    /// implicit viscosity grows with each liquid's least viscosity at the last solve.
     fn liquid_step<K: Kernel>(&self, sim: &Simulation<D, K>) -> f64 {
         let dx = sim.grid.dx;
         let mut viscous = f64::INFINITY;
@@ -400,8 +405,14 @@ impl<const D: usize> Incompressible<D> {
             .particles
             .groups
             .iter()
-            .map(|g| {
-                surface_tension::stable_dt(g.material.surface_tension(), g.material.density(), dx)
+            .enumerate()
+            .map(|(k, g)| {
+                let mu = self
+                    .viscosity
+                    .as_ref()
+                    .map_or(0.0, |v| v.least_viscosity(k));
+                let (sigma, rho) = (g.material.surface_tension(), g.material.density());
+                surface_tension::stable_dt(sigma, rho, mu, dx)
             })
             .fold(f64::INFINITY, f64::min);
         viscous.min(capillary)

@@ -269,6 +269,9 @@ pub(super) struct ImplicitViscosity<const D: usize> {
     z: Vec<f64>,
     p: Vec<f64>,
     ap: Vec<f64>,
+    /// Per particle group: the least viscosity μ_p of its particles at the last solve (or
+    /// at the start), Pa·s, which bounds the viscous–capillary step (surface_tension.rs).
+    least_viscosity: Vec<f64>,
 }
 
 impl<const D: usize> ImplicitViscosity<D> {
@@ -371,8 +374,8 @@ impl<const D: usize> ImplicitViscosity<D> {
     }
 
     /// The particles' coefficients 2 μ_p V_p, μ_p from each liquid at its particles' state
-    /// at the start of the step. Returns the first particle whose viscosity is not a finite
-    /// number ≥ 0, with it.
+    /// at the start of the step, and each group's least μ_p. Returns the first particle
+    /// whose viscosity is not a finite number ≥ 0, with it.
     fn coefficients<K: Kernel>(&mut self, sim: &Simulation<D, K>) -> Option<(usize, f64)>
     where
         dyn Material: DimensionDispatch<D>,
@@ -403,6 +406,16 @@ impl<const D: usize> ImplicitViscosity<D> {
                 viscosity: &mut coefficient[range],
             });
         }
+        self.least_viscosity.clear();
+        for group in &particles.groups {
+            let least = coefficient[group.range.clone()]
+                .iter()
+                .copied()
+                .filter(|c| c.is_finite() && *c >= 0.0)
+                .fold(f64::INFINITY, f64::min);
+            self.least_viscosity
+                .push(if least.is_finite() { least } else { 0.0 });
+        }
         let mut bad = None;
         for (p, c) in coefficient.iter_mut().enumerate() {
             if !(c.is_finite() && *c >= 0.0) {
@@ -415,6 +428,21 @@ impl<const D: usize> ImplicitViscosity<D> {
             *c *= 2.0 * volume;
         }
         bad
+    }
+
+    /// The least viscosity of particle group `group` at the last solve, Pa·s (0 before
+    /// the first one, or for a group that has none).
+    pub(super) fn least_viscosity(&self, group: usize) -> f64 {
+        self.least_viscosity.get(group).copied().unwrap_or(0.0)
+    }
+
+    /// Evaluates the particles' viscosities at the current state (before the first step,
+    /// so that the first step's bound, and a fixed step's check, see them).
+    pub(super) fn measure_viscosities<K: Kernel>(&mut self, sim: &Simulation<D, K>)
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
+        self.coefficients(sim);
     }
 
     /// The constraints of the walls and obstacles on the nodes with mass at `time`, the
