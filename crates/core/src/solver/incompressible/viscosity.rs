@@ -385,6 +385,7 @@ impl<const D: usize> ImplicitViscosity<D> {
         let coefficient = &mut self.operator.coefficient;
         coefficient.resize(n, 0.0);
         self.scratch.stress.resize(n, Matrix::<D>::zeros());
+        self.least_viscosity.clear();
         for group in &particles.groups {
             let range = group.range.clone();
             let material = group.material.as_ref();
@@ -400,15 +401,13 @@ impl<const D: usize> ImplicitViscosity<D> {
             } else {
                 &particles.velocity_gradient[range.clone()]
             };
+            let viscosity = &mut coefficient[range];
             material.viscosities(ViscosityBatch {
                 velocity_gradient,
                 shared: reads,
-                viscosity: &mut coefficient[range],
+                viscosity: &mut *viscosity,
             });
-        }
-        self.least_viscosity.clear();
-        for group in &particles.groups {
-            let least = coefficient[group.range.clone()]
+            let least = viscosity
                 .iter()
                 .copied()
                 .filter(|c| c.is_finite() && *c >= 0.0)
