@@ -79,7 +79,8 @@ pub fn export_vtk(
         vtu.push_str("\n</DataArray>\n</Cells>\n<PointData>\n");
         for field in fields.iter().filter(|f| *f != "x") {
             let (shape, values) = store.frame(field, frame as u64)?;
-            let comps: u64 = shape.iter().product();
+            // `shape` is the frame's: the particles first, then each one's components.
+            let comps: u64 = shape.iter().skip(1).product();
             let _ = writeln!(
                 vtu,
                 "<DataArray type=\"Float64\" Name=\"{field}\" NumberOfComponents=\"{comps}\" format=\"ascii\">"

@@ -137,6 +137,13 @@ fn run_writes_a_store_and_export_writes_vtk() {
     assert_eq!(pvd.matches("<DataSet").count(), 41);
     let vtu = std::fs::read_to_string(dir.path().join("vtk/vibrating-bar_00040.vtu")).unwrap();
     assert!(vtu.contains("NumberOfPoints=\"320\"") && vtu.contains("Name=\"stress\""));
+    // Components per particle (σ is 2×2 in 2D, v has 2), not per frame.
+    assert!(
+        vtu.contains("Name=\"stress\" NumberOfComponents=\"4\"")
+            && vtu.contains("Name=\"v\" NumberOfComponents=\"2\""),
+        "{}",
+        &vtu[vtu.find("<PointData>").unwrap_or(0)..][..400]
+    );
 }
 
 #[test]
