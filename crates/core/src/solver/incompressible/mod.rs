@@ -40,8 +40,12 @@
 //! The step is bounded by the velocity CFL, dx/(|v|max + √(dx·|g|)), and, with viscosity explicit, by
 //! ρ·dx²/(2·D·μ); never by a sound speed. With `viscosity: "implicit"` P2G leaves the
 //! viscous stress out and a backward-Euler viscous solve on the grid (viscosity.rs) acts
-//! between steps 1 and 2; the viscous bound then goes.
+//! between steps 1 and 2; the viscous bound then goes. With surface tension as well, a
+//! Poisson solve for the Laplace pressure's change comes before that viscous solve
+//! (capillary_first.rs), so the viscous step damps the capillary force and the step is
+//! bounded by the viscous–capillary time, not the capillary wave.
 
+mod capillary_first;
 mod enclosed_air;
 mod energy_balance;
 mod extrapolate;
@@ -122,6 +126,9 @@ pub(super) struct Incompressible<const D: usize> {
     ap: Vec<f64>,
     /// The implicit viscous step (`viscosity: "implicit"`), else `None`.
     viscosity: Option<viscosity::ImplicitViscosity<D>>,
+    /// With implicit viscosity: the capillary pressure solved before the viscous step
+    /// (capillary_first.rs; acts only with surface tension).
+    capillary: Option<capillary_first::CapillaryFirst>,
     /// The gas in the pockets the liquid encloses (`enclosed_air`), else `None`.
     air: Option<enclosed_air::EnclosedAir>,
     /// With implicit viscosity: the volume source's own right-hand side and pressure, and
@@ -140,6 +147,8 @@ impl<const D: usize> Incompressible<D> {
         Self {
             viscosity: (settings.viscosity == ViscousIntegration::Implicit)
                 .then(viscosity::ImplicitViscosity::default),
+            capillary: (settings.viscosity == ViscousIntegration::Implicit)
+                .then(capillary_first::CapillaryFirst::default),
             air: settings.enclosed_air.map(enclosed_air::EnclosedAir::new),
             source_rhs: Vec::new(),
             source_pressure: Vec::new(),
@@ -311,6 +320,9 @@ where
         self.grid_velocity(sim, dt);
         if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.add_pressure_force(&mut self.free_velocity, &mut self.pressure, dt);
+        }
+        self.capillary_first(sim, dt);
+        if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity);
         }
         self.project(sim, dt);
@@ -441,9 +453,10 @@ impl<const D: usize> Incompressible<D> {
         apply_boundaries(sim, sim.time + dt);
     }
 
-    /// Solves the pressure Poisson equation for the grid velocity after the explicit
-    /// forces and projects it; walls and obstacles act again afterwards.
-    fn project<K: Kernel>(&mut self, sim: &mut Simulation<D, K>, dt: f64)
+    /// The liquid cells (a particle of a moving group in them) with their mass and volume,
+    /// and the pressure unknowns: `inverse_diagonal` is 1/diagonal on nodes whose every
+    /// cell is liquid or solid, 0 on the free surface and off the liquid.
+    fn classify_cells<K: Kernel>(&mut self, sim: &Simulation<D, K>)
     where
         dyn Material: DimensionDispatch<D>,
     {
@@ -482,6 +495,16 @@ impl<const D: usize> Incompressible<D> {
         for v in &mut self.inverse_diagonal {
             *v = if *v > 0.0 { 1.0 / *v } else { 0.0 };
         }
+    }
+
+    /// Solves the pressure Poisson equation for the grid velocity after the explicit
+    /// forces and projects it; walls and obstacles act again afterwards.
+    fn project<K: Kernel>(&mut self, sim: &mut Simulation<D, K>, dt: f64)
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
+        let corners = 1 << D;
+        self.classify_cells(sim);
         // Right-hand side (1/dt) ∫ ∇N_i · v* over the liquid cells, with v* before the walls
         // act: -(1/dt) ∫ N_i ∇·v* integrated by parts, where the boundary term is the flux
         // through the walls after the step, zero (fixed walls), and N_i = 0 on the free

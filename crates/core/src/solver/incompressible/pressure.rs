@@ -2,12 +2,60 @@
 //! CG solve (with the enclosed-air pockets' unknowns after the nodes), the velocity change
 //! the pressure gives the nodes, and the nodal pressure interpolated to the particles.
 
+use super::enclosed_air::EnclosedAir;
 use super::{Incompressible, MAX_CORNERS, cell_of};
 use crate::kernels::Kernel;
 use crate::linear_solvers::conjugate_gradient::{Solve, Work, solve};
 use crate::math::Vector;
 use crate::physics::PhysicsFault;
 use crate::solver::simulation::Simulation;
+
+/// The liquid cells' pressure Poisson operator Σ_c (1/ρ_c) ∫_c ∇N_i·∇N_j, borrowed from
+/// the projection's workspace (with the enclosed-air pockets' rows when `air` is given).
+pub(super) struct CellOperator<'a> {
+    pub(super) stiffness: &'a [[f64; MAX_CORNERS]; MAX_CORNERS],
+    pub(super) corner_offset: &'a [usize; MAX_CORNERS],
+    pub(super) cell_mass: &'a [f64],
+    pub(super) cell_volume: &'a [f64],
+    pub(super) cell_node: &'a [usize],
+    /// Corners of a cell, 2^D.
+    pub(super) corners: usize,
+    pub(super) air: Option<&'a EnclosedAir>,
+    /// Grid nodes (the pockets' unknowns come after them).
+    pub(super) n: usize,
+}
+
+impl CellOperator<'_> {
+    /// y = A x over the liquid cells (every node's value counts: fixed ones too).
+    pub(super) fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let (corners, n) = (self.corners, self.n);
+        y.fill(0.0);
+        let mut xc = [0.0; MAX_CORNERS];
+        for c in 0..self.cell_mass.len() {
+            if self.cell_volume[c] <= 0.0 {
+                continue;
+            }
+            let scale = self.cell_volume[c] / self.cell_mass[c];
+            let base = self.cell_node[c];
+            for (b, value) in xc.iter_mut().enumerate().take(corners) {
+                let j = base + self.corner_offset[b];
+                // A node around an enclosed pocket adds the pocket's pressure.
+                *value = x[j] + self.air.map_or(0.0, |a| a.tied(j, x, n));
+            }
+            for a in 0..corners {
+                let sum: f64 = self.stiffness[a][..corners]
+                    .iter()
+                    .zip(&xc[..corners])
+                    .map(|(k, x)| k * x)
+                    .sum();
+                y[base + self.corner_offset[a]] += scale * sum;
+            }
+        }
+        if let Some(air) = self.air {
+            air.gather(x, y, n);
+        }
+    }
+}
 
 impl<const D: usize> Incompressible<D> {
     /// Solves the liquid cells' pressure Poisson operator for `pressure` from `rhs` (CG, warm
@@ -31,33 +79,17 @@ impl<const D: usize> Incompressible<D> {
             air,
             ..
         } = self;
-        let air = air.as_ref().filter(|_| with_air);
-        let apply = |x: &[f64], y: &mut [f64]| {
-            y.fill(0.0);
-            let mut xc = [0.0; MAX_CORNERS];
-            for c in 0..cell_mass.len() {
-                if cell_volume[c] <= 0.0 {
-                    continue;
-                }
-                let scale = cell_volume[c] / cell_mass[c];
-                let base = cell_node[c];
-                for (b, value) in xc.iter_mut().enumerate().take(corners) {
-                    let j = base + corner_offset[b];
-                    // A node around an enclosed pocket adds the pocket's pressure.
-                    *value = x[j] + air.map_or(0.0, |a| a.tied(j, x, n));
-                }
-                for a in 0..corners {
-                    let mut sum = 0.0;
-                    for b in 0..corners {
-                        sum += stiffness[a][b] * xc[b];
-                    }
-                    y[base + corner_offset[a]] += scale * sum;
-                }
-            }
-            if let Some(air) = air {
-                air.gather(x, y, n);
-            }
+        let operator = CellOperator {
+            stiffness,
+            corner_offset,
+            cell_mass,
+            cell_volume,
+            cell_node,
+            corners,
+            air: air.as_ref().filter(|_| with_air),
+            n,
         };
+        let apply = |x: &[f64], y: &mut [f64]| operator.apply(x, y);
         if inverse_diagonal.iter().any(|&v| v > 0.0) {
             solve(
                 apply,

@@ -350,6 +350,14 @@ impl<const D: usize> ImplicitViscosity<D> {
         }
     }
 
+    /// Adds `increment` to the kept pressure p^n (the capillary stage's, solved before the
+    /// viscous step: the projection then solves for what is left).
+    pub(super) fn add_to_kept_pressure(&mut self, increment: &[f64]) {
+        for (b, d) in self.base.iter_mut().zip(increment) {
+            *b += d;
+        }
+    }
+
     /// The last total pressure at node `i` (0 before the first step).
     pub(super) fn last_pressure(&self, i: usize) -> f64 {
         self.base.get(i).copied().unwrap_or(0.0)
