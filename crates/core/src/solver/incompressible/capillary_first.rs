@@ -21,7 +21,7 @@
 //! Hysing's (2006) implicit surface term. One more Poisson solve per step, on steps
 //! longer than the inertial capillary bound only (within it the explicit σκ is stable).
 use super::pressure::{CellOperator, report_solve};
-use super::{DimensionDispatch, Incompressible, extrapolate, pressure_inlet, surface_tension};
+use super::{DimensionDispatch, Incompressible, extrapolate, surface_tension};
 use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::solver::simulation::Simulation;
@@ -66,34 +66,14 @@ impl<const D: usize> Incompressible<D> {
         let n = sim.grid.len();
         self.classify_cells(sim);
         self.pressure.fill(0.0);
+        self.surface_pressure(sim);
         let (Some(surface), Some(viscosity), Some(stage)) = (
-            self.surface.as_mut(),
-            self.viscosity.as_mut(),
+            self.surface.as_ref(),
+            self.viscosity.as_ref(),
             self.capillary.as_mut(),
         ) else {
             return;
         };
-        if let Some(inflows) = &sim.inflow {
-            pressure_inlet::reservoir_nodes(
-                inflows.drives(),
-                &sim.grid,
-                sim.time,
-                &mut surface.reservoir,
-            );
-        }
-        let liquid_cells = self
-            .cell_volume
-            .iter()
-            .zip(&self.cell_node)
-            .filter(|(v, _)| **v > 0.0)
-            .map(|(_, &node)| node);
-        surface.surface_pressure(
-            &sim.grid,
-            liquid_cells,
-            &self.corner_offset[..corners],
-            &self.inverse_diagonal,
-            &mut self.pressure,
-        );
         stage.fixed.resize(n, 0.0);
         for i in 0..n {
             stage.fixed[i] = if self.inverse_diagonal[i] <= 0.0 && surface.touches_liquid(i) {

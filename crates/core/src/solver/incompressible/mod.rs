@@ -399,6 +399,36 @@ fn convective_step<const D: usize, K: Kernel>(sim: &Simulation<D, K>) -> f64 {
 }
 
 impl<const D: usize> Incompressible<D> {
+    /// Writes σκ on the free-surface nodes into `pressure` (surface_tension.rs); nothing
+    /// without surface tension. The liquid behind pressure inlets is no void (its face is no
+    /// free surface).
+    fn surface_pressure<K: Kernel>(&mut self, sim: &Simulation<D, K>) {
+        let Some(surface) = self.surface.as_mut() else {
+            return;
+        };
+        if let Some(inflows) = &sim.inflow {
+            pressure_inlet::reservoir_nodes(
+                inflows.drives(),
+                &sim.grid,
+                sim.time,
+                &mut surface.reservoir,
+            );
+        }
+        let liquid_cells = self
+            .cell_volume
+            .iter()
+            .zip(&self.cell_node)
+            .filter(|(v, _)| **v > 0.0)
+            .map(|(_, &node)| node);
+        surface.surface_pressure(
+            &sim.grid,
+            liquid_cells,
+            &self.corner_offset[..1 << D],
+            &self.inverse_diagonal,
+            &mut self.pressure,
+        );
+    }
+
     /// The liquid's own step bounds before `cfl`: the explicit viscous limit ρdx²/(2Dμ)
     /// (explicit viscosity only) and the capillary one (surface_tension.rs), which with
     /// implicit viscosity grows with each liquid's least viscosity at the last solve.
@@ -539,29 +569,8 @@ impl<const D: usize> Incompressible<D> {
                 *x = 0.0;
             }
         }
+        self.surface_pressure(sim);
         if let Some(surface) = &mut self.surface {
-            let liquid_cells = self
-                .cell_volume
-                .iter()
-                .zip(&self.cell_node)
-                .filter(|(v, _)| **v > 0.0)
-                .map(|(_, &node)| node);
-            // The liquid behind pressure inlets is no void (the face is no free surface).
-            if let Some(inflows) = &sim.inflow {
-                pressure_inlet::reservoir_nodes(
-                    inflows.drives(),
-                    &sim.grid,
-                    sim.time,
-                    &mut surface.reservoir,
-                );
-            }
-            surface.surface_pressure(
-                &sim.grid,
-                liquid_cells,
-                &self.corner_offset[..corners],
-                &self.inverse_diagonal,
-                &mut self.pressure,
-            );
             sim.surface_energy = surface.energy(&sim.grid, &self.open);
             // The incremental projection (implicit viscosity) solves for the change from the
             // total pressure it kept: the free surface's increment is σ·κ less that.
