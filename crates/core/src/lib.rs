@@ -23,6 +23,7 @@ pub mod particles;
 pub mod physics;
 pub mod plugin;
 pub mod reference;
+pub mod refinement;
 pub mod scene;
 pub mod section;
 pub mod solver;

@@ -1,0 +1,55 @@
+//! Local refinement: a grid with levels, each halving the spacing of the one above it over
+//! a nested region, and the truncated hierarchical B-spline (THB) basis on it
+//! (Giannelli, Jüttler & Speleers 2012), which keeps partition of unity and stays
+//! non-negative across level boundaries, so the transfers keep mass and momentum.
+//!
+//! Built so far: the levels (levels.rs), the basis (thb.rs), checked against what the
+//! solver needs of it (partition of unity, linear and quadratic reproduction, weights
+//! ≥ 0), and APIC transfers through it (transfer.rs), exact for an affine velocity field
+//! across level boundaries. Not yet: the solver's step on it (grid update, walls, the
+//! stress's force, the grid solves), particles splitting and merging between levels, the
+//! scene section that names the regions (docs/ARCHITECTURE.md, "Local refinement").
+
+mod levels;
+mod thb;
+mod transfer;
+
+pub use levels::Levels;
+pub use thb::{ThbBasis, Weight};
+pub use transfer::{LevelGrid, grid_to_particles, particles_to_grid};
+
+/// What is wrong with a refinement's geometry or a point handed to its basis.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum RefinementError {
+    /// The base level's origin or spacing is not a finite number (spacing > 0).
+    #[error("the base level's {0} must be finite (spacing > 0)")]
+    Base(&'static str),
+    /// The base level has no element along an axis, or more than `MAX_ELEMENTS` in all on
+    /// some level.
+    #[error(
+        "level {level} would have {elements} elements (at least 1 per axis, at most {max} in all)"
+    )]
+    Elements {
+        /// The level.
+        level: usize,
+        /// Its element count (0 if an axis has none).
+        elements: u128,
+        /// The limit.
+        max: usize,
+    },
+    /// More levels than `MAX_LEVELS`.
+    #[error("{0} refined levels named; at most {max} are allowed", max = levels::MAX_LEVELS)]
+    TooManyLevels(usize),
+    /// A region box with a coordinate that is not finite or a minimum above its maximum.
+    #[error("level {level}, box {index}: min and max must be finite and min <= max")]
+    Box {
+        /// The refined level (1 for the first).
+        level: usize,
+        /// The box's index in that level's list.
+        index: usize,
+    },
+    /// A point outside the base level's elements, or where the base level has no complete
+    /// set of functions (within two elements of its edge).
+    #[error("the point lies outside the basis's interior")]
+    Outside,
+}
