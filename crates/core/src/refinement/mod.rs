@@ -16,7 +16,10 @@ mod transfer;
 
 pub use levels::Levels;
 pub use thb::{ThbBasis, Weight};
-pub use transfer::{LevelGrid, grid_to_particles, particles_to_grid};
+pub use transfer::{LevelGrid, grid_to_particles, internal_forces, particles_to_grid};
+
+#[cfg(test)]
+mod wave_check;
 
 /// What is wrong with a refinement's geometry or a point handed to its basis.
 #[derive(Debug, thiserror::Error, PartialEq)]

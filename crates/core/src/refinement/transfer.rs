@@ -87,6 +87,27 @@ pub fn grid_to_particles<const D: usize>(
     Ok(())
 }
 
+/// The stress's force on each function, f_i = −Σ_p V_p σ_p ∇w_ip, into `force` (sized to
+/// the basis and zeroed first).
+pub fn internal_forces<const D: usize>(
+    basis: &ThbBasis<D>,
+    position: &[Vector<D>],
+    volume: &[f64],
+    stress: &[Matrix<D>],
+    force: &mut Vec<Vector<D>>,
+    weights: &mut Vec<Weight<D>>,
+) -> Result<(), (usize, RefinementError)> {
+    force.clear();
+    force.resize(basis.len(), Vector::<D>::zeros());
+    for (p, x) in position.iter().enumerate() {
+        basis.evaluate(x, weights).map_err(|e| (p, e))?;
+        for w in weights.iter() {
+            force[w.id as usize] -= stress[p] * w.gradient * volume[p];
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
