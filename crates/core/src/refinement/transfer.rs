@@ -193,6 +193,67 @@ mod tests {
         }
     }
 
+    /// A uniform stress puts no force on any function whose support the particles cover:
+    /// with 2^D particles per element of the finest level at its two-point Gauss points
+    /// (exact for the cubic integrands ∂w/∂x_d on an element), across two level boundaries.
+    #[test]
+    fn a_uniform_stress_puts_no_force_inside_the_particles() {
+        let refine = vec![
+            vec![(Vector::<2>::new(0.5, 0.4), Vector::<2>::new(1.1, 1.0))],
+            vec![(Vector::<2>::new(0.65, 0.55), Vector::<2>::new(0.9, 1.3))],
+        ];
+        let basis =
+            ThbBasis::new(Levels::new(Vector::<2>::zeros(), 0.1, [16, 16], &refine).unwrap());
+        let levels = basis.levels();
+        let gauss = [0.5 - 0.5 / 3f64.sqrt(), 0.5 + 0.5 / 3f64.sqrt()];
+        let (mut position, mut volume) = (Vec::new(), Vec::new());
+        // Each base element over [0.2, 1.4)², split into its finest elements.
+        for i in 2..14 {
+            for j in 2..14 {
+                let corner = Vector::<2>::new(i as f64 * 0.1, j as f64 * 0.1);
+                let centre = corner + Vector::<2>::repeat(0.05);
+                let level = levels.finest_level(&centre).unwrap();
+                let h = levels.level_spacing(level);
+                let n = 1 << level;
+                for a in 0..n * n {
+                    let sub = corner + Vector::<2>::new((a / n) as f64, (a % n) as f64) * h;
+                    for g in 0..4 {
+                        position.push(sub + Vector::<2>::new(gauss[g / 2], gauss[g % 2]) * h);
+                        volume.push(0.25 * h * h);
+                    }
+                }
+            }
+        }
+        let stress = vec![Matrix::<2>::new(3.0, -1.5, -1.5, 2.0); position.len()];
+        let mut force = Vec::new();
+        internal_forces(
+            &basis,
+            &position,
+            &volume,
+            &stress,
+            &mut force,
+            &mut Vec::new(),
+        )
+        .unwrap();
+        let mut inside = [0usize; 3];
+        for id in 0..basis.len() as u32 {
+            let (level, j) = basis.function(id);
+            let h = levels.level_spacing(level);
+            // Support [j h, (j + 3) h] per axis within the particles' [0.2, 1.4].
+            let covered = (0..2)
+                .all(|d| j[d] as f64 * h >= 0.2 - 1e-12 && (j[d] + 3) as f64 * h <= 1.4 + 1e-12);
+            if covered {
+                inside[level] += 1;
+                let f = force[id as usize].norm();
+                assert!(f < 1e-12, "function {id} on level {level}: force {f}");
+            }
+        }
+        assert!(
+            inside.iter().all(|&n| n > 0),
+            "functions checked per level {inside:?}"
+        );
+    }
+
     #[test]
     fn a_particle_off_the_interior_is_named() {
         let none: Vec<Vec<(Vector<1>, Vector<1>)>> = Vec::new();
