@@ -5,16 +5,19 @@
 //!
 //! Built so far: the levels (levels.rs), the basis (thb.rs), checked against what the
 //! solver needs of it (partition of unity, linear and quadratic reproduction, weights
-//! ≥ 0), and APIC transfers through it (transfer.rs), exact for an affine velocity field
-//! across level boundaries. Not yet: the solver's step on it (grid update, walls, the
-//! stress's force, the grid solves), particles splitting and merging between levels, the
-//! scene section that names the regions (docs/ARCHITECTURE.md, "Local refinement").
+//! ≥ 0), APIC transfers and the stress's force through it (transfer.rs), exact for an
+//! affine velocity field across level boundaries, and the split and merge of particles
+//! that cross one (split_merge.rs). Not yet: the solver's step on it (grid update, walls,
+//! the grid solves), the split and merge inside a run, the scene section that names the
+//! regions (docs/ARCHITECTURE.md, "Local refinement").
 
 mod levels;
+mod split_merge;
 mod thb;
 mod transfer;
 
 pub use levels::Levels;
+pub use split_merge::{Kinematics, merge, merge_weights, split};
 pub use thb::{ThbBasis, Weight};
 pub use transfer::{LevelGrid, grid_to_particles, internal_forces, particles_to_grid};
 
