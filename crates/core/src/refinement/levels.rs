@@ -79,6 +79,20 @@ impl<const D: usize> Levels<D> {
         Ok(levels)
     }
 
+    /// The levels over a solver grid with nodes at `min` + i·`dx`, i = 0 … `cells` per
+    /// axis: origin `min` − 1.5·`dx` and `cells` + 3 elements, so level-0 function j is
+    /// the quadratic B-spline of node j (the `bspline2` kernel's). The basis then covers
+    /// points from half a cell inside the grid's faces (`ThbBasis::evaluate`).
+    pub fn for_grid(
+        min: Vector<D>,
+        dx: f64,
+        cells: [usize; D],
+        refine: &[Vec<(Vector<D>, Vector<D>)>],
+    ) -> Result<Self, RefinementError> {
+        let elements = std::array::from_fn(|d| cells[d] + 3);
+        Self::new(min - Vector::<D>::repeat(1.5 * dx), dx, elements, refine)
+    }
+
     /// Marks in `region` (level `level`) the children of the level-(ℓ−1) elements in Ω^(ℓ−1)
     /// that the box touches.
     fn mark(&self, level: usize, min: &Vector<D>, max: &Vector<D>, region: &mut [bool]) {

@@ -417,6 +417,47 @@ mod tests {
     }
 
     #[test]
+    fn on_a_solver_grid_level_0_is_the_bspline2_kernel_of_its_nodes() {
+        use crate::kernels::{Kernel, QuadraticBSpline};
+        let (min, dx) = (Vector::<2>::new(-0.3, 0.1), 0.05);
+        let none: Vec<Vec<(Vector<2>, Vector<2>)>> = Vec::new();
+        let basis = ThbBasis::new(Levels::for_grid(min, dx, [10, 12], &none).unwrap());
+        assert_eq!(basis.len(), 11 * 13);
+        let mut out = Vec::new();
+        for x in [
+            Vector::<2>::new(-0.27, 0.13),
+            Vector::<2>::new(-0.01, 0.3),
+            Vector::<2>::new(0.17, 0.67),
+        ] {
+            basis.evaluate(&x, &mut out).unwrap();
+            let axes: Vec<_> = (0..2)
+                .map(|d| QuadraticBSpline::weights((x[d] - min[d]) / dx, 0.0))
+                .collect();
+            assert_eq!(out.len(), 9);
+            for w in &out {
+                let (level, j) = basis.function(w.id);
+                assert_eq!(level, 0);
+                let mut expected = 1.0;
+                for d in 0..2 {
+                    let k = (j[d] - axes[d].base as i64) as usize;
+                    assert!(k < 3, "node {j:?} outside the kernel's stencil at {x:?}");
+                    expected *= axes[d].w[k];
+                }
+                assert!(
+                    (w.value - expected).abs() < 1e-14,
+                    "{} vs {expected}",
+                    w.value
+                );
+            }
+        }
+        // Closer than half a cell to a face, the kernel would reach node −1.
+        assert_eq!(
+            basis.evaluate(&Vector::<2>::new(-0.28, 0.3), &mut out),
+            Err(RefinementError::Outside)
+        );
+    }
+
+    #[test]
     fn points_off_the_interior_are_refused() {
         let basis = basis::<2>();
         let mut out = Vec::new();
