@@ -18,7 +18,7 @@ mod transfer;
 
 pub use levels::Levels;
 pub use split_merge::{Kinematics, merge, merge_weights, split};
-pub use thb::{ThbBasis, Weight};
+pub use thb::{ExtractionCache, ThbBasis, Weight};
 pub use transfer::{LevelGrid, grid_to_particles, internal_forces, particles_to_grid};
 
 #[cfg(test)]
