@@ -105,8 +105,11 @@ impl CapillaryRise {
             let t = &mut top[k * across + i];
             *t = t.max(x[p.up]);
         }
-        let found: Vec<f64> = top.into_iter().filter(|t| t.is_finite()).collect();
-        (!found.is_empty()).then(|| (found.iter().sum::<f64>(), found.len()))
+        let (sum, count) = top
+            .iter()
+            .filter(|t| t.is_finite())
+            .fold((0.0, 0), |(s, n), t| (s + t, n + 1));
+        (count > 0).then_some((sum, count))
     }
 }
 

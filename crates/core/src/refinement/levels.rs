@@ -99,24 +99,25 @@ impl<const D: usize> Levels<D> {
         let coarse = level - 1;
         let h = self.level_spacing(coarse);
         let shape = self.shape(coarse);
-        let mut lo = [0usize; D];
-        let mut hi = [0usize; D];
+        let mut lo = [0i64; D];
+        let mut hi = [0i64; D];
         for d in 0..D {
             // A face within 1e-9 of an element of a knot is on it (0.3/0.1 is 2.9999…).
             let a = ((min[d] - self.origin[d]) / h + 1e-9).floor();
             let b = ((max[d] - self.origin[d]) / h - 1e-9).ceil();
             let n = shape[d] as f64;
-            lo[d] = a.clamp(0.0, n) as usize;
-            hi[d] = b.clamp(0.0, n) as usize;
+            lo[d] = a.clamp(0.0, n) as i64;
+            hi[d] = b.clamp(0.0, n) as i64;
             if hi[d] == lo[d] {
                 return;
             }
         }
         let mut e = lo;
         loop {
-            if self.regions[coarse][self.flat(coarse, &e)] {
+            if self.in_region(coarse, &e) {
                 for c in 0..1usize << D {
-                    let child: [usize; D] = std::array::from_fn(|d| 2 * e[d] + ((c >> d) & 1));
+                    let child: [usize; D] =
+                        std::array::from_fn(|d| 2 * e[d] as usize + ((c >> d) & 1));
                     region[self.flat(level, &child)] = true;
                 }
             }
@@ -204,7 +205,7 @@ impl<const D: usize> Levels<D> {
             if !self.in_region(target, &e) {
                 return false;
             }
-            if !next_signed(&mut e, &lo, &hi) {
+            if !next(&mut e, &lo, &hi) {
                 return true;
             }
         }
@@ -212,19 +213,7 @@ impl<const D: usize> Levels<D> {
 }
 
 /// Steps `e` through the box [lo, hi) (last axis fastest); false once past its end.
-fn next<const D: usize>(e: &mut [usize; D], lo: &[usize; D], hi: &[usize; D]) -> bool {
-    for d in (0..D).rev() {
-        e[d] += 1;
-        if e[d] < hi[d] {
-            return true;
-        }
-        e[d] = lo[d];
-    }
-    false
-}
-
-/// `next` for signed indices.
-fn next_signed<const D: usize>(e: &mut [i64; D], lo: &[i64; D], hi: &[i64; D]) -> bool {
+fn next<const D: usize>(e: &mut [i64; D], lo: &[i64; D], hi: &[i64; D]) -> bool {
     for d in (0..D).rev() {
         e[d] += 1;
         if e[d] < hi[d] {

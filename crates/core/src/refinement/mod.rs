@@ -19,10 +19,28 @@ mod transfer;
 pub use levels::Levels;
 pub use split_merge::{Kinematics, merge, merge_weights, split};
 pub use thb::{ExtractionCache, ThbBasis, Weight};
-pub use transfer::{LevelGrid, grid_to_particles, internal_forces, particles_to_grid};
+pub use transfer::{
+    LevelGrid, TransferScratch, grid_to_particles, internal_forces, particles_to_grid,
+};
 
 #[cfg(test)]
 mod wave_check;
+
+/// A small pseudo-random sequence in [0, 1) for the tests (an LCG; no dependency).
+#[cfg(test)]
+fn numbers(seed: u64, n: usize) -> Vec<f64> {
+    let step = |s: u64| {
+        s.wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407)
+    };
+    let mut s = step(seed);
+    (0..n)
+        .map(|_| {
+            s = step(s);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        })
+        .collect()
+}
 
 /// What is wrong with a refinement's geometry or a point handed to its basis.
 #[derive(Debug, thiserror::Error, PartialEq)]

@@ -351,21 +351,6 @@ fn refine<const D: usize>(coarse: &[f64; LOCAL], child: &[i64; D]) -> [f64; LOCA
 mod tests {
     use super::*;
 
-    /// A small pseudo-random sequence in [0, 1).
-    fn numbers(seed: u64, n: usize) -> Vec<f64> {
-        let mut s = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64
-            })
-            .collect()
-    }
-
     /// Two levels above a base of 16 elements of 0.1 per axis: level 1 over a box off the
     /// middle, level 2 over a smaller one that crosses level 1's edge (so it is cut).
     fn basis<const D: usize>() -> ThbBasis<D> {
@@ -379,7 +364,7 @@ mod tests {
     /// Points inside the base box, two elements from its edge, with some on level
     /// boundaries and knots.
     fn points<const D: usize>(n: usize) -> Vec<Vector<D>> {
-        let r = numbers(D as u64, n * D);
+        let r = crate::refinement::numbers(D as u64, n * D);
         let mut p: Vec<Vector<D>> = (0..n)
             .map(|i| Vector::<D>::from_fn(|d, _| 0.2 + 1.2 * r[i * D + d]))
             .collect();

@@ -4,7 +4,7 @@
 //! unity and linear reproduction (thb.rs) make both exact for an affine velocity field on
 //! every level and across level boundaries, and keep the total mass and momentum.
 
-use super::{RefinementError, ThbBasis, Weight};
+use super::{ExtractionCache, RefinementError, ThbBasis, Weight};
 use crate::math::{Matrix, Vector};
 
 /// Mass and momentum (then velocity) per active function of a `ThbBasis`.
@@ -37,8 +37,24 @@ impl<const D: usize> LevelGrid<D> {
     }
 }
 
+/// What the transfers reuse from call to call: the weights of one particle and the
+/// extraction of each element (valid for one basis; start a new one for another).
+#[derive(Clone, Debug, Default)]
+pub struct TransferScratch<const D: usize> {
+    weights: Vec<Weight<D>>,
+    cache: ExtractionCache<D>,
+}
+
+impl<const D: usize> TransferScratch<D> {
+    /// The weights at particle `x` (`ThbBasis::evaluate_cached`).
+    fn at(&mut self, basis: &ThbBasis<D>, x: &Vector<D>) -> Result<&[Weight<D>], RefinementError> {
+        basis.evaluate_cached(&mut self.cache, x, &mut self.weights)?;
+        Ok(&self.weights)
+    }
+}
+
 /// P2G of particles at `position` with `mass`, `velocity` and velocity gradient `affine`
-/// into `grid` (cleared first); `weights` is scratch. A particle outside the basis's
+/// into `grid` (cleared first). A particle outside the basis's
 /// interior stops it with `Outside` and its index.
 pub fn particles_to_grid<const D: usize>(
     basis: &ThbBasis<D>,
@@ -47,12 +63,11 @@ pub fn particles_to_grid<const D: usize>(
     velocity: &[Vector<D>],
     affine: &[Matrix<D>],
     grid: &mut LevelGrid<D>,
-    weights: &mut Vec<Weight<D>>,
+    scratch: &mut TransferScratch<D>,
 ) -> Result<(), (usize, RefinementError)> {
     grid.clear(basis);
     for (p, x) in position.iter().enumerate() {
-        basis.evaluate(x, weights).map_err(|e| (p, e))?;
-        for w in weights.iter() {
+        for w in scratch.at(basis, x).map_err(|e| (p, e))? {
             let i = w.id as usize;
             let offset = basis.center(w.id) - x;
             grid.mass[i] += w.value * mass[p];
@@ -70,13 +85,12 @@ pub fn grid_to_particles<const D: usize>(
     grid: &LevelGrid<D>,
     velocity: &mut [Vector<D>],
     affine: &mut [Matrix<D>],
-    weights: &mut Vec<Weight<D>>,
+    scratch: &mut TransferScratch<D>,
 ) -> Result<(), (usize, RefinementError)> {
     for (p, x) in position.iter().enumerate() {
-        basis.evaluate(x, weights).map_err(|e| (p, e))?;
         let mut v = Vector::<D>::zeros();
         let mut c = Matrix::<D>::zeros();
-        for w in weights.iter() {
+        for w in scratch.at(basis, x).map_err(|e| (p, e))? {
             let vi = grid.momentum[w.id as usize];
             v += vi * w.value;
             c += vi * w.gradient.transpose();
@@ -95,13 +109,12 @@ pub fn internal_forces<const D: usize>(
     volume: &[f64],
     stress: &[Matrix<D>],
     force: &mut Vec<Vector<D>>,
-    weights: &mut Vec<Weight<D>>,
+    scratch: &mut TransferScratch<D>,
 ) -> Result<(), (usize, RefinementError)> {
     force.clear();
     force.resize(basis.len(), Vector::<D>::zeros());
     for (p, x) in position.iter().enumerate() {
-        basis.evaluate(x, weights).map_err(|e| (p, e))?;
-        for w in weights.iter() {
+        for w in scratch.at(basis, x).map_err(|e| (p, e))? {
             force[w.id as usize] -= stress[p] * w.gradient * volume[p];
         }
     }
@@ -124,24 +137,18 @@ mod tests {
         ];
         let basis =
             ThbBasis::new(Levels::new(Vector::<2>::zeros(), 0.1, [16, 16], &refine).unwrap());
-        let mut s = 12345u64;
-        let mut random = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
         let n = 3000;
+        let r = crate::refinement::numbers(12345, 3 * n);
         let position: Vec<Vector<2>> = (0..n)
-            .map(|_| Vector::<2>::new(0.2 + 1.2 * random(), 0.2 + 1.2 * random()))
+            .map(|p| Vector::<2>::new(0.2 + 1.2 * r[3 * p], 0.2 + 1.2 * r[3 * p + 1]))
             .collect();
-        let mass: Vec<f64> = (0..n).map(|_| 0.5 + random()).collect();
+        let mass: Vec<f64> = (0..n).map(|p| 0.5 + r[3 * p + 2]).collect();
         let a = Vector::<2>::new(0.3, -1.2);
         let b = Matrix::<2>::new(0.7, -0.4, 1.1, 0.2);
         let velocity: Vec<Vector<2>> = position.iter().map(|x| a + b * x).collect();
         let affine = vec![b; n];
         let mut grid = LevelGrid::default();
-        let mut weights = Vec::new();
+        let mut scratch = TransferScratch::default();
         particles_to_grid(
             &basis,
             &position,
@@ -149,7 +156,7 @@ mod tests {
             &velocity,
             &affine,
             &mut grid,
-            &mut weights,
+            &mut scratch,
         )
         .unwrap();
         let total: f64 = mass.iter().sum();
@@ -180,7 +187,7 @@ mod tests {
             &grid,
             &mut back,
             &mut gradient,
-            &mut weights,
+            &mut scratch,
         )
         .unwrap();
         for p in 0..n {
@@ -232,7 +239,7 @@ mod tests {
             &volume,
             &stress,
             &mut force,
-            &mut Vec::new(),
+            &mut TransferScratch::default(),
         )
         .unwrap();
         let mut inside = [0usize; 3];
@@ -267,7 +274,7 @@ mod tests {
             &[Vector::<1>::zeros(); 2],
             &[Matrix::<1>::zeros(); 2],
             &mut grid,
-            &mut Vec::new(),
+            &mut TransferScratch::default(),
         );
         assert_eq!(result, Err((1, RefinementError::Outside)));
     }

@@ -5,7 +5,10 @@
 //! particles (the coarse region's are the same in both), leaves out the dispersion tail
 //! and the left-running part of the start that both share.
 
-use super::{LevelGrid, Levels, ThbBasis, grid_to_particles, internal_forces, particles_to_grid};
+use super::{
+    LevelGrid, Levels, ThbBasis, TransferScratch, grid_to_particles, internal_forces,
+    particles_to_grid,
+};
 use crate::math::{Matrix, Vector};
 
 /// Base spacing, m (E = ρ = 1, so the wave speed is 1 m/s).
@@ -72,7 +75,7 @@ fn run(refined: usize, width: f64, finest: usize) -> (f64, Vec<[f64; 4]>) {
     let steps = (0.4 / dt).round() as usize;
     let mut grid = LevelGrid::default();
     let mut force = Vec::new();
-    let mut weights = Vec::new();
+    let mut scratch = TransferScratch::default();
     for _ in 0..steps {
         particles_to_grid(
             &basis,
@@ -81,7 +84,7 @@ fn run(refined: usize, width: f64, finest: usize) -> (f64, Vec<[f64; 4]>) {
             &velocity,
             &affine,
             &mut grid,
-            &mut weights,
+            &mut scratch,
         )
         .unwrap();
         internal_forces(
@@ -90,7 +93,7 @@ fn run(refined: usize, width: f64, finest: usize) -> (f64, Vec<[f64; 4]>) {
             &volume,
             &stress,
             &mut force,
-            &mut weights,
+            &mut scratch,
         )
         .unwrap();
         for ((p, f), &m) in grid.momentum.iter_mut().zip(&force).zip(&grid.mass) {
@@ -105,7 +108,7 @@ fn run(refined: usize, width: f64, finest: usize) -> (f64, Vec<[f64; 4]>) {
             &grid,
             &mut velocity,
             &mut affine,
-            &mut weights,
+            &mut scratch,
         )
         .unwrap();
         for p in 0..n {
