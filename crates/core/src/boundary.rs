@@ -114,6 +114,8 @@ pub struct WallPlane {
     pub surface: usize,
     /// Static contact angle of a liquid on the wall, radians, measured through the liquid.
     pub contact_angle: f64,
+    /// What the wall does to the velocity (stick and symmetry walls mirror their ghosts).
+    pub condition: Contact,
 }
 
 /// A grid node near an obstacle's surface, inside it or in front of it (for the
@@ -449,6 +451,7 @@ impl<const D: usize> Boundaries<D> {
             upper: w.upper,
             surface: w.surface,
             contact_angle: w.contact_angle,
+            condition: w.contact,
         })
     }
 
@@ -483,6 +486,52 @@ impl<const D: usize> Boundaries<D> {
                 booked.friction += friction_loss(wall.contact, m, &before, v, &n);
             }
         }
+        self.apply_obstacles(x, t, m, v, &mut booked);
+        booked
+    }
+
+    /// [`Self::apply_booked`] for a basis function centred at `x` anywhere (the refined
+    /// grid's, `solver/refined.rs`): a wall holds it when `x` lies on the wall side of the
+    /// wall's node plane (inclusive, to 1e-9 of a cell) of the grid with node 0 at
+    /// `origin` and spacing `dx`, as a node on or behind the plane is held.
+    pub fn apply_booked_at(
+        &self,
+        x: &Vector<D>,
+        grid: (&Vector<D>, f64),
+        t: f64,
+        m: f64,
+        v: &mut Vector<D>,
+    ) -> SurfaceWork {
+        let (origin, dx) = grid;
+        let mut booked = SurfaceWork::default();
+        for wall in &self.walls {
+            let along = (x[wall.axis] - origin[wall.axis]) / dx - wall.surface as f64;
+            let behind = if wall.upper {
+                along >= -1e-9
+            } else {
+                along <= 1e-9
+            };
+            if behind {
+                let mut n = Vector::<D>::zeros();
+                n[wall.axis] = if wall.upper { -1.0 } else { 1.0 };
+                let before = *v;
+                apply_contact(v, &n, wall.contact);
+                booked.friction += friction_loss(wall.contact, m, &before, v, &n);
+            }
+        }
+        self.apply_obstacles(x, t, m, v, &mut booked);
+        booked
+    }
+
+    /// The obstacles' part of [`Self::apply_booked`], added to `booked`.
+    fn apply_obstacles(
+        &self,
+        x: &Vector<D>,
+        t: f64,
+        m: f64,
+        v: &mut Vector<D>,
+        booked: &mut SurfaceWork,
+    ) {
         for obstacle in &self.obstacles {
             // The obstacle has moved by velocity·t: evaluate at the point relative to it.
             let local = x - obstacle.velocity * t;
@@ -497,7 +546,6 @@ impl<const D: usize> Boundaries<D> {
                 booked.friction += friction_loss(obstacle.contact, m, &rel_before, &rel, &n);
             }
         }
-        booked
     }
 }
 

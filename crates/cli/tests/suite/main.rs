@@ -34,6 +34,7 @@ mod pressure_inlet;
 mod process_3d;
 mod process_chain;
 mod process_fill_chain;
+mod refinement;
 mod render;
 mod resume;
 mod rom;

@@ -157,6 +157,13 @@ impl<const D: usize> Levels<D> {
         self.shape(level).iter().product()
     }
 
+    /// Elements of level `level` in its region Ω^ℓ (0 for a level that is not there).
+    pub fn region_len(&self, level: usize) -> usize {
+        self.regions
+            .get(level)
+            .map_or(0, |r| r.iter().filter(|&&inside| inside).count())
+    }
+
     /// Row-major index (last axis fastest) of element `e` in level `level`'s box.
     fn flat(&self, level: usize, e: &[usize; D]) -> usize {
         let shape = self.shape(level);

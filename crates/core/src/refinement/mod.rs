@@ -16,7 +16,7 @@ mod split_merge;
 mod thb;
 mod transfer;
 
-pub use levels::Levels;
+pub use levels::{Levels, MAX_ELEMENTS, MAX_LEVELS};
 pub use split_merge::{Kinematics, merge, merge_weights, split};
 pub use thb::{ExtractionCache, ThbBasis, Weight};
 pub use transfer::{

@@ -101,7 +101,7 @@ impl<const D: usize> ThbBasis<D> {
     }
 
     /// The id of the active level-`level` function with first knot `j`, if it is active.
-    fn id(&self, level: usize, j: &[i64; D]) -> Option<u32> {
+    pub fn id(&self, level: usize, j: &[i64; D]) -> Option<u32> {
         let shape = function_shape(&self.levels, level);
         if (0..D).any(|d| j[d] < 0 || j[d] as usize >= shape[d]) {
             return None;
@@ -148,6 +148,11 @@ impl<const D: usize> ThbBasis<D> {
         };
         self.combine(x, finest, &element, &cache.entries[start..start + len], out);
         Ok(())
+    }
+
+    /// Whether `evaluate` takes `x` (it lies in the basis's interior).
+    pub fn covers(&self, x: &Vector<D>) -> bool {
+        self.locate(x).is_ok()
     }
 
     /// The finest level holding `x` and its element there, or `Outside`.

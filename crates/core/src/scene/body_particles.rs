@@ -174,6 +174,18 @@ impl Validator {
                 );
                 continue;
             }
+            if let Some(refinement) = &s.solver.refinement
+                && let Err(message) = super::refinement::split_for_refinement(
+                    dim,
+                    refinement,
+                    &s.domain,
+                    &mut body,
+                    self.max_particles,
+                )
+            {
+                self.err("solver.refinement", message);
+                continue;
+            }
             body.velocities = initial_velocities(dim, &body.positions, b.velocity.as_ref());
             out.push(body);
         }

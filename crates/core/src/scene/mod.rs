@@ -18,6 +18,7 @@ mod lattice;
 mod loads;
 mod obstacle;
 mod output;
+mod refinement;
 mod solver_settings;
 mod stage_conversion;
 mod stages;
@@ -34,6 +35,7 @@ pub use inflow::{INJECTED, Inflow, InflowLayout};
 pub use loads::{Load, in_box};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, FatigueLayer, Output, StopCriteria};
+pub use refinement::{RefinedLevel, Refinement, RegionBox};
 pub use solver_settings::{
     AntiLocking, EnclosedAirSettings, FreeStrain2d, GridStorage, ImplicitForm, ImplicitSettings,
     IncompressibleSettings, KernelName, KrylovMethod, Mechanics, Scheme, Solver, TangentMethod,

@@ -115,6 +115,11 @@ pub struct Solver {
     /// particles stay put), or quasi-statically (relaxed to equilibrium every step).
     #[serde(default, skip_serializing_if = "Mechanics::is_dynamic")]
     pub mechanics: Mechanics,
+    /// Finer grid levels over named boxes (hierarchical B-splines): the step runs on every
+    /// level at once, and particles in a refined region are split at the start so each
+    /// level's cells hold the body's particles per cell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<super::refinement::Refinement>,
 }
 
 /// How the background grid is stored (`solver.grid`).

@@ -142,6 +142,12 @@ pub(super) fn validate_stages(
             ));
             continue;
         };
+        if stage.changes.pointer("/solver/refinement").is_some() {
+            issues.push(Issue::new(
+                format!("{path}.changes.solver.refinement"),
+                "the refined step (solver.refinement) runs in a scene of one stage so far",
+            ));
+        }
         for key in changes.keys() {
             if FIXED_ACROSS_STAGES.contains(&key.as_str()) {
                 issues.push(Issue::new(

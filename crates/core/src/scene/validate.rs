@@ -108,6 +108,7 @@ pub fn parse_scene_value_limited(
     let mut v = Validator {
         issues: Vec::new(),
         dim: scene.dimension as usize,
+        max_particles: limits.max_particles,
     };
     v.check(&scene);
     v.issues.extend(budget::check(&scene, limits, registry));
@@ -247,6 +248,7 @@ impl Validator {
         s.solver.validate(self);
         self.check_total_lagrangian(s);
         self.check_cpdi(s);
+        self.check_refinement(s);
         if let super::Mechanics::Incompressible(settings) = &s.solver.mechanics {
             let mut walled: Vec<super::Side> = s
                 .domain

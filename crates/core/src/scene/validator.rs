@@ -7,6 +7,9 @@ use super::Issue;
 pub(super) struct Validator {
     pub(super) issues: Vec<Issue>,
     pub(super) dim: usize,
+    /// Most particles the scene may generate (limit `particles`), for the set-up steps
+    /// that multiply them (the split into refined levels).
+    pub(super) max_particles: u64,
 }
 
 impl Validator {

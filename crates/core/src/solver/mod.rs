@@ -39,6 +39,7 @@ mod output_staging;
 pub(crate) mod parallel;
 mod particle_to_grid;
 mod quasi_static;
+mod refined;
 mod run_loop;
 mod separable;
 mod setup;

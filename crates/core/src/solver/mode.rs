@@ -10,11 +10,13 @@ use super::implicit::Implicit;
 use super::incompressible::Incompressible;
 use super::mechanics_off::MechanicsOff;
 use super::quasi_static::QuasiStatic;
+use super::refined::Refined;
 use super::simulation::Simulation;
 use super::total_lagrangian::TotalLagrangian;
 use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::kernels::Kernel;
 use crate::material::Material;
+use crate::refinement::Levels;
 use crate::scene::Mechanics;
 
 /// One time-integration mode.
@@ -45,10 +47,15 @@ pub(crate) trait StepMode<const D: usize, K: Kernel>: Send {
 pub(super) fn for_scene<const D: usize, K: Kernel>(
     mechanics: Mechanics,
     fbar: bool,
+    refined: Option<Levels<D>>,
 ) -> Box<dyn StepMode<D, K>>
 where
     dyn Material: DimensionDispatch<D>,
 {
+    if let Some(levels) = refined {
+        // Validation allows refinement with dynamic mechanics only.
+        return Box::new(Refined::new(levels));
+    }
     match mechanics {
         Mechanics::Dynamic if K::DOMAINS => Box::new(Cpdi::<D>::default()),
         Mechanics::Dynamic => Box::new(Explicit),

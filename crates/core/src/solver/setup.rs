@@ -262,6 +262,12 @@ where
         let contact =
             contact.map(|(_, _, laws)| MultiField::new(&grid, flip, K::SPAN, &field_counts, laws));
         grid.set_sparse(s.solver.sparse_grid(contact.is_some()));
+        // Validation built the same levels from the same domain and refused the scene
+        // where that failed.
+        let refined = s.solver.refinement.as_ref().map(|r| {
+            r.grid_levels::<D>(&s.domain)
+                .expect("refinement levels were checked when the scene was validated")
+        });
         Self {
             boundaries: Boundaries::new(
                 &s.domain.walls,
@@ -304,7 +310,7 @@ where
             inflow,
             sort_counter: 0,
             contact,
-            mode: Some(super::mode::for_scene(s.solver.mechanics, fbar)),
+            mode: Some(super::mode::for_scene(s.solver.mechanics, fbar, refined)),
             _kernel: std::marker::PhantomData,
         }
     }
