@@ -227,30 +227,36 @@ impl<const D: usize> ThbBasis<D> {
             values[d] = [0.5 * (1.0 - u) * (1.0 - u), 0.5 + u - u * u, 0.5 * u * u];
             slopes[d] = [-(1.0 - u) / h, (1.0 - 2.0 * u) / h, u / h];
         }
-        for (id, coefficients) in extraction {
-            let mut value = 0.0;
-            let mut gradient = Vector::<D>::zeros();
-            for (b, &c) in coefficients[..local].iter().enumerate() {
-                if c == 0.0 {
-                    continue;
-                }
-                let a = local_digits::<D>(b);
-                let mut product = 1.0;
-                for d in 0..D {
-                    product *= values[d][a[d]];
-                }
-                value += c * product;
-                for g in 0..D {
-                    let mut p = c;
-                    for d in 0..D {
-                        p *= if d == g {
+        // The element's 3^D local B-splines and their gradients at x, once; each function
+        // is then a combination of them.
+        let mut local_value = [0.0; LOCAL];
+        let mut local_gradient = [Vector::<D>::zeros(); LOCAL];
+        for b in 0..local {
+            let a = local_digits::<D>(b);
+            let mut product = 1.0;
+            for d in 0..D {
+                product *= values[d][a[d]];
+            }
+            local_value[b] = product;
+            local_gradient[b] = Vector::<D>::from_fn(|g, _| {
+                (0..D)
+                    .map(|d| {
+                        if d == g {
                             slopes[d][a[d]]
                         } else {
                             values[d][a[d]]
-                        };
-                    }
-                    gradient[g] += p;
-                }
+                        }
+                    })
+                    .product()
+            });
+        }
+        for (id, coefficients) in extraction {
+            let mut value = 0.0;
+            let mut gradient = Vector::<D>::zeros();
+            for b in 0..local {
+                let c = coefficients[b];
+                value += c * local_value[b];
+                gradient += local_gradient[b] * c;
             }
             out.push(Weight {
                 id: *id,
@@ -266,7 +272,7 @@ impl<const D: usize> ThbBasis<D> {
 #[derive(Clone, Debug, Default)]
 pub struct ExtractionCache<const D: usize> {
     /// (level, element) → the range of its functions in `entries`.
-    index: std::collections::HashMap<(usize, [i64; D]), (usize, usize)>,
+    index: std::collections::HashMap<(usize, [i64; D]), (usize, usize), KeyHash>,
     entries: Vec<(u32, [f64; LOCAL])>,
     scratch: Vec<(u32, [f64; LOCAL])>,
 }
@@ -282,6 +288,38 @@ impl<const D: usize> ExtractionCache<D> {
         self.index.is_empty()
     }
 }
+
+/// A multiplicative hash of the cache's integer keys (the standard SipHash is built to
+/// resist crafted keys, which element indices are not, and costs several times more).
+#[derive(Clone, Copy, Debug, Default)]
+struct KeyHasher(u64);
+
+impl std::hash::Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, n: u64) {
+        self.0 = (self.0.rotate_left(5) ^ n).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+
+    fn write_usize(&mut self, n: usize) {
+        self.write_u64(n as u64);
+    }
+
+    fn write_i64(&mut self, n: i64) {
+        self.write_u64(n as u64);
+    }
+}
+
+/// Builds [`KeyHasher`]s for the cache's map.
+type KeyHash = std::hash::BuildHasherDefault<KeyHasher>;
 
 /// First knots per axis of the level's functions: those whose support (three elements)
 /// lies in the level's box.

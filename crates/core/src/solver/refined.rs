@@ -22,6 +22,7 @@ use crate::kernels::Kernel;
 use crate::material::Material;
 use crate::math::{Matrix, Vector, determinant, inverse};
 use crate::refinement::{ExtractionCache, LevelGrid, Levels, ThbBasis, Weight};
+use rayon::prelude::*;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -64,8 +65,9 @@ pub(super) struct Refined<const D: usize> {
     grid: LevelGrid<D>,
     /// Force per function, N (N/m in 2D).
     force: Vec<Vector<D>>,
-    /// P2G's scratch (one thread: the scatter is serial so far).
-    scatter: Scratch<D>,
+    /// P2G's particles per x-slab of three base cells, and each slab's scratch.
+    slabs: Vec<Vec<u32>>,
+    slab_scratch: Vec<Mutex<Scratch<D>>>,
     /// G2P's scratch, one per chunk of particles.
     gather: Vec<Mutex<Scratch<D>>>,
     /// The finest level's cell size, m: the step's bound.
@@ -90,7 +92,8 @@ impl<const D: usize> Refined<D> {
             centers,
             grid: LevelGrid::default(),
             force: Vec::new(),
-            scatter: Scratch::default(),
+            slabs: Vec::new(),
+            slab_scratch: Vec::new(),
             gather: Vec::new(),
             finest_spacing,
             mirrors: None,
@@ -146,7 +149,10 @@ impl<const D: usize> Refined<D> {
         mirrors
     }
 
-    /// P2G: mass, APIC momentum, the stress's force, gravity and dead loads per function.
+    /// P2G: mass, APIC momentum, the stress's force and dead loads per function. Particles
+    /// are binned into x-slabs three base cells wide and slabs of one colour (even, then
+    /// odd) scatter in parallel: every function's support spans at most three base cells
+    /// along x, so no function is written from two slabs of one colour.
     fn particles_to_functions<K: Kernel>(&mut self, sim: &Simulation<D, K>)
     where
         dyn Material: DimensionDispatch<D>,
@@ -155,25 +161,55 @@ impl<const D: usize> Refined<D> {
         self.force.clear();
         self.force.resize(self.basis.len(), Vector::<D>::zeros());
         let p = &sim.particles;
+        let width = 3.0 * sim.grid.dx;
+        let count = ((sim.grid.cells[0] as f64 * sim.grid.dx) / width).ceil() as usize + 1;
+        self.slabs.resize_with(count, Vec::new);
+        self.slab_scratch.resize_with(count, Default::default);
+        for slab in &mut self.slabs {
+            slab.clear();
+        }
+        let x0 = sim.grid.origin[0];
+        for (k, x) in p.position.iter().enumerate() {
+            let s = ((x[0] - x0) / width).floor().clamp(0.0, (count - 1) as f64) as usize;
+            self.slabs[s].push(k as u32);
+        }
         let loads = (!p.external_force.is_empty()).then_some(&p.external_force);
-        let Scratch { cache, weights } = &mut self.scatter;
-        for k in 0..p.len() {
-            let x = &p.position[k];
-            // A particle off the basis stopped the run at the G2P before (`escaped`).
-            if self.basis.evaluate_cached(cache, x, weights).is_err() {
-                continue;
-            }
-            let m = p.mass[k];
-            let volume = p.volume0[k] * determinant(&p.deformation_gradient[k]);
-            let stress = p.stress[k] * volume;
-            let load = loads.map_or(Vector::<D>::zeros(), |l| l[k]);
-            for w in weights.iter() {
-                let i = w.id as usize;
-                let offset = self.centers[i] - x;
-                self.grid.mass[i] += w.value * m;
-                self.grid.momentum[i] += (p.velocity[k] + p.affine[k] * offset) * (w.value * m);
-                self.force[i] += load * w.value - stress * w.gradient;
-            }
+        let mass_out = SharedSlice::new(&mut self.grid.mass);
+        let momentum_out = SharedSlice::new(&mut self.grid.momentum);
+        let force_out = SharedSlice::new(&mut self.force);
+        let (basis, centers, slabs) = (&self.basis, &self.centers, &self.slabs);
+        let slab_scratch = &self.slab_scratch;
+        for colour in 0..2 {
+            (0..count)
+                .into_par_iter()
+                .filter(|s| s % 2 == colour)
+                .for_each(|s| {
+                    let mut guard = slab_scratch[s].lock().unwrap_or_else(|e| e.into_inner());
+                    let Scratch { cache, weights } = &mut *guard;
+                    for &k in &slabs[s] {
+                        let k = k as usize;
+                        let x = &p.position[k];
+                        // A particle off the basis stopped the run at the G2P before.
+                        if basis.evaluate_cached(cache, x, weights).is_err() {
+                            continue;
+                        }
+                        let m = p.mass[k];
+                        let volume = p.volume0[k] * determinant(&p.deformation_gradient[k]);
+                        let stress = p.stress[k] * volume;
+                        let load = loads.map_or(Vector::<D>::zeros(), |l| l[k]);
+                        for w in weights.iter() {
+                            let i = w.id as usize;
+                            let offset = centers[i] - x;
+                            // SAFETY: slabs of one colour write disjoint functions (above).
+                            unsafe {
+                                *mass_out.get(i) += w.value * m;
+                                *momentum_out.get(i) +=
+                                    (p.velocity[k] + p.affine[k] * offset) * (w.value * m);
+                                *force_out.get(i) += load * w.value - stress * w.gradient;
+                            }
+                        }
+                    }
+                });
         }
     }
 
