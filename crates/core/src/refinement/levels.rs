@@ -4,6 +4,7 @@
 //! level-(ℓ−1) elements (each splits into 2^D of level ℓ), as THB-splines require.
 
 use super::RefinementError;
+use crate::kernels::fast_floor;
 use crate::math::Vector;
 
 /// Most refined levels above the base one.
@@ -187,7 +188,7 @@ impl<const D: usize> Levels<D> {
     /// The level-`level` element holding `x` (it may lie beyond the box).
     pub fn element_at(&self, level: usize, x: &Vector<D>) -> [i64; D] {
         let h = self.level_spacing(level);
-        std::array::from_fn(|d| ((x[d] - self.origin[d]) / h).floor() as i64)
+        std::array::from_fn(|d| fast_floor((x[d] - self.origin[d]) / h) as i64)
     }
 
     /// The finest level whose region holds `x`, or `None` outside the base box.

@@ -120,7 +120,9 @@ impl<const D: usize> ThbBasis<D> {
         let (finest, element) = self.locate(x)?;
         let mut extraction = Vec::new();
         self.extract(finest, &element, &mut extraction);
-        self.combine(x, finest, &element, &extraction, out);
+        let (mut functions, mut terms) = (Vec::new(), Vec::new());
+        compress(&extraction, &mut functions, &mut terms);
+        self.combine(x, finest, &element, &functions, &terms, out);
         Ok(())
     }
 
@@ -133,20 +135,33 @@ impl<const D: usize> ThbBasis<D> {
         out: &mut Vec<Weight<D>>,
     ) -> Result<(), RefinementError> {
         out.clear();
+        self.append_cached(cache, x, out)
+    }
+
+    /// `evaluate_cached` appending to `out` instead of clearing it: a pass that keeps
+    /// every particle's weights in one buffer (the refined step's P2G, read again by G2P).
+    pub fn append_cached(
+        &self,
+        cache: &mut ExtractionCache<D>,
+        x: &Vector<D>,
+        out: &mut Vec<Weight<D>>,
+    ) -> Result<(), RefinementError> {
         let (finest, element) = self.locate(x)?;
         let (start, len) = match cache.index.get(&(finest, element)) {
             Some(&range) => range,
             None => {
                 let mut extraction = std::mem::take(&mut cache.scratch);
                 self.extract(finest, &element, &mut extraction);
-                let range = (cache.entries.len(), extraction.len());
-                cache.entries.extend_from_slice(&extraction);
+                let start = cache.functions.len();
+                compress(&extraction, &mut cache.functions, &mut cache.terms);
+                let range = (start, extraction.len());
                 cache.scratch = extraction;
                 cache.index.insert((finest, element), range);
                 range
             }
         };
-        self.combine(x, finest, &element, &cache.entries[start..start + len], out);
+        let functions = &cache.functions[start..start + len];
+        self.combine(x, finest, &element, functions, &cache.terms, out);
         Ok(())
     }
 
@@ -209,13 +224,15 @@ impl<const D: usize> ThbBasis<D> {
         }
     }
 
-    /// Values and gradients at `x` of the functions of an element's extraction.
+    /// Values and gradients at `x` of the functions of an element's compressed extraction
+    /// (`functions` index into `terms`).
     fn combine(
         &self,
         x: &Vector<D>,
         finest: usize,
         element: &[i64; D],
-        extraction: &[(u32, [f64; LOCAL])],
+        functions: &[ExtractedFunction],
+        terms: &[(u8, f64)],
         out: &mut Vec<Weight<D>>,
     ) {
         let local = 3usize.pow(D as u32);
@@ -250,16 +267,23 @@ impl<const D: usize> ThbBasis<D> {
                     .product()
             });
         }
-        for (id, coefficients) in extraction {
-            let mut value = 0.0;
-            let mut gradient = Vector::<D>::zeros();
-            for b in 0..local {
-                let c = coefficients[b];
-                value += c * local_value[b];
-                gradient += local_gradient[b] * c;
-            }
+        for f in functions {
+            let own = &terms[f.start as usize..f.start as usize + f.count as usize];
+            let (value, gradient) = match own {
+                // A function of the element's own level, not truncated there: one local
+                // B-spline (most functions, everywhere but near a level boundary).
+                &[(b, 1.0)] => (local_value[b as usize], local_gradient[b as usize]),
+                _ => own
+                    .iter()
+                    .fold((0.0, Vector::<D>::zeros()), |(value, gradient), &(b, c)| {
+                        (
+                            value + c * local_value[b as usize],
+                            gradient + local_gradient[b as usize] * c,
+                        )
+                    }),
+            };
             out.push(Weight {
-                id: *id,
+                id: f.id,
                 value,
                 gradient,
             });
@@ -271,10 +295,42 @@ impl<const D: usize> ThbBasis<D> {
 /// the functions not zero there with their coefficients on its local B-splines.
 #[derive(Clone, Debug, Default)]
 pub struct ExtractionCache<const D: usize> {
-    /// (level, element) → the range of its functions in `entries`.
+    /// (level, element) → the range of its functions in `functions`.
     index: std::collections::HashMap<(usize, [i64; D]), (usize, usize), KeyHash>,
-    entries: Vec<(u32, [f64; LOCAL])>,
+    functions: Vec<ExtractedFunction>,
+    terms: Vec<(u8, f64)>,
     scratch: Vec<(u32, [f64; LOCAL])>,
+}
+
+/// One function of an element's extraction: its id and its nonzero coefficients on the
+/// element's local B-splines, `terms[start..start + count]` as (local index, coefficient).
+#[derive(Clone, Copy, Debug)]
+struct ExtractedFunction {
+    id: u32,
+    start: u32,
+    count: u8,
+}
+
+/// Appends an element's extraction to `functions` and `terms`, keeping only the nonzero
+/// coefficients: a function of the element's own level is then a single term.
+fn compress(
+    extraction: &[(u32, [f64; LOCAL])],
+    functions: &mut Vec<ExtractedFunction>,
+    terms: &mut Vec<(u8, f64)>,
+) {
+    for (id, coefficients) in extraction {
+        let start = terms.len() as u32;
+        terms.extend(
+            (0..LOCAL)
+                .filter(|&b| coefficients[b] != 0.0)
+                .map(|b| (b as u8, coefficients[b])),
+        );
+        functions.push(ExtractedFunction {
+            id: *id,
+            start,
+            count: (terms.len() as u32 - start) as u8,
+        });
+    }
 }
 
 impl<const D: usize> ExtractionCache<D> {

@@ -23,15 +23,24 @@ use crate::material::Material;
 use crate::math::{Matrix, Vector, determinant, inverse};
 use crate::refinement::{ExtractionCache, LevelGrid, Levels, ThbBasis, Weight};
 use rayon::prelude::*;
-use std::sync::Mutex;
 use std::time::Instant;
 
-/// What one particle pass keeps from step to step: each element's extraction and the
-/// weights of the particle at hand.
+/// What one slab of P2G keeps from step to step: each element's extraction, and the
+/// weights of the slab's particles this step, one after the other (G2P reads them again:
+/// particles do not move between the two).
 #[derive(Default)]
 struct Scratch<const D: usize> {
     cache: ExtractionCache<D>,
     weights: Vec<Weight<D>>,
+}
+
+/// Where one particle's weights of this step lie: `weights[start..start + len]` of slab
+/// `slab`'s scratch; `len` 0 where the particle is off the basis.
+#[derive(Clone, Copy, Debug, Default)]
+struct WeightRange {
+    slab: u32,
+    start: u32,
+    len: u32,
 }
 
 /// A stick or symmetry wall's ghost function (its centre behind the wall's plane) and the
@@ -67,9 +76,9 @@ pub(super) struct Refined<const D: usize> {
     force: Vec<Vector<D>>,
     /// P2G's particles per x-slab of three base cells, and each slab's scratch.
     slabs: Vec<Vec<u32>>,
-    slab_scratch: Vec<Mutex<Scratch<D>>>,
-    /// G2P's scratch, one per chunk of particles.
-    gather: Vec<Mutex<Scratch<D>>>,
+    slab_scratch: Vec<Scratch<D>>,
+    /// Each particle's weights of this step in `slab_scratch` (written by P2G).
+    located: Vec<WeightRange>,
     /// The finest level's cell size, m: the step's bound.
     finest_spacing: f64,
     /// Ghost functions of stick and symmetry walls, wall by wall, nearest the plane first
@@ -94,7 +103,7 @@ impl<const D: usize> Refined<D> {
             force: Vec::new(),
             slabs: Vec::new(),
             slab_scratch: Vec::new(),
-            gather: Vec::new(),
+            located: Vec::new(),
             finest_spacing,
             mirrors: None,
         }
@@ -174,30 +183,46 @@ impl<const D: usize> Refined<D> {
             self.slabs[s].push(k as u32);
         }
         let loads = (!p.external_force.is_empty()).then_some(&p.external_force);
+        self.located.resize(p.len(), WeightRange::default());
         let mass_out = SharedSlice::new(&mut self.grid.mass);
         let momentum_out = SharedSlice::new(&mut self.grid.momentum);
         let force_out = SharedSlice::new(&mut self.force);
+        let located = SharedSlice::new(&mut self.located);
         let (basis, centers, slabs) = (&self.basis, &self.centers, &self.slabs);
-        let slab_scratch = &self.slab_scratch;
         for colour in 0..2 {
-            (0..count)
-                .into_par_iter()
-                .filter(|s| s % 2 == colour)
-                .for_each(|s| {
-                    let mut guard = slab_scratch[s].lock().unwrap_or_else(|e| e.into_inner());
-                    let Scratch { cache, weights } = &mut *guard;
+            self.slab_scratch
+                .par_iter_mut()
+                .enumerate()
+                .filter(|(s, _)| s % 2 == colour)
+                .for_each(|(s, scratch)| {
+                    let Scratch { cache, weights } = scratch;
+                    weights.clear();
                     for &k in &slabs[s] {
                         let k = k as usize;
                         let x = &p.position[k];
+                        let start = weights.len();
                         // A particle off the basis stopped the run at the G2P before.
-                        if basis.evaluate_cached(cache, x, weights).is_err() {
+                        let found = basis.append_cached(cache, x, weights).is_ok();
+                        let range = WeightRange {
+                            slab: s as u32,
+                            start: start as u32,
+                            len: if found {
+                                (weights.len() - start) as u32
+                            } else {
+                                0
+                            },
+                        };
+                        // SAFETY: every particle lies in exactly one slab.
+                        unsafe { *located.get(k) = range };
+                        if !found {
+                            weights.truncate(start);
                             continue;
                         }
                         let m = p.mass[k];
                         let volume = p.volume0[k] * determinant(&p.deformation_gradient[k]);
                         let stress = p.stress[k] * volume;
                         let load = loads.map_or(Vector::<D>::zeros(), |l| l[k]);
-                        for w in weights.iter() {
+                        for w in &weights[start..] {
                             let i = w.id as usize;
                             let offset = centers[i] - x;
                             // SAFETY: slabs of one colour write disjoint functions (above).
@@ -277,7 +302,6 @@ impl<const D: usize> Refined<D> {
     {
         let n = sim.particles.len();
         let chunks = chunk_count(n);
-        self.gather.resize_with(chunks, Default::default);
         let gravity = sim.settings.gravity;
         let p = &mut sim.particles;
         let store_gradient = !p.velocity_gradient.is_empty();
@@ -289,20 +313,21 @@ impl<const D: usize> Refined<D> {
         let affine = SharedSlice::new(&mut p.affine);
         let gradient_out = SharedSlice::new(&mut p.velocity_gradient);
         let (basis, centers, grid_velocity) = (&self.basis, &self.centers, &self.grid.momentum);
-        let gather = &self.gather;
+        let (slab_scratch, located) = (&self.slab_scratch, &self.located);
         ordered_reduce(
             chunks,
             KinematicStats::default,
             |chunk| {
                 let mut stats = KinematicStats::<D>::default();
-                let mut guard = gather[chunk].lock().unwrap_or_else(|e| e.into_inner());
-                let Scratch { cache, weights } = &mut *guard;
                 for k in chunk_range(chunk, n) {
                     // SAFETY: chunks are disjoint particle ranges; each particle is touched
                     // by exactly one task.
                     let (x, v, f) =
                         unsafe { (position.get(k), velocity.get(k), deformation.get(k)) };
-                    if basis.evaluate_cached(cache, x, weights).is_ok() {
+                    let WeightRange { slab, start, len } = located[k];
+                    if len > 0 {
+                        let (start, len) = (start as usize, len as usize);
+                        let weights = &slab_scratch[slab as usize].weights[start..start + len];
                         let mut v_new = Vector::<D>::zeros();
                         let mut b = Matrix::<D>::zeros();
                         let mut inertia = Matrix::<D>::zeros();
