@@ -137,6 +137,10 @@ pub enum Command {
         /// where it is whole, and torn where it tore.
         #[arg(long)]
         deformed: bool,
+        /// Leave out the outlines of a refined run's grid levels (drawn by default: each
+        /// finer level's region as the solver built it, level 1 white, 2 orange, 3 magenta).
+        #[arg(long)]
+        no_levels: bool,
     },
     /// Print the JSON Schema of scene files (as checked into api/scene.schema.json).
     Schema,
@@ -468,6 +472,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             plane,
             slab,
             deformed,
+            no_levels,
         } => {
             let r = crate::render::render(&crate::render::RenderArgs {
                 store,
@@ -481,13 +486,18 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
                 plane,
                 slab,
                 deformed,
+                hide_levels: no_levels,
             })?;
             let voids = r
                 .voids
                 .map(|n| format!(", {n} voids marked"))
                 .unwrap_or_default();
+            let levels = r
+                .levels
+                .map(|n| format!(", {n} refined level(s) outlined"))
+                .unwrap_or_default();
             outln!(
-                "wrote {} (frame {}, t = {} s, {} particles, {} from {} to {}{voids})",
+                "wrote {} (frame {}, t = {} s, {} particles, {} from {} to {}{voids}{levels})",
                 out.display(),
                 r.frame,
                 crate::render::short(r.time),

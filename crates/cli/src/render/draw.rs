@@ -1,8 +1,10 @@
 //! Drawing the picture: the particles as squares of their spacing coloured by value on equal
-//! axes, the void markers, the title and the colour bar, to a PNG file.
+//! axes, the outlines of refined grid levels, the void markers, the title and the colour
+//! bar, to a PNG file.
 
 use super::colour::{NAN_GREY, colour_of, viridis};
 use super::labels::{length_unit, short};
+use super::levels::Segment;
 use super::voids::Void;
 use anyhow::anyhow;
 use plotters::prelude::*;
@@ -30,6 +32,8 @@ pub(super) struct Picture<'a> {
     pub(super) label: &'a str,
     /// Voids to mark.
     pub(super) voids: &'a [Void],
+    /// The outline of each refined grid level, level 1 first, m.
+    pub(super) levels: &'a [Vec<Segment>],
     /// Names of the axes drawn across and up.
     pub(super) axes: [&'a str; 2],
 }
@@ -45,6 +49,13 @@ const BAR_AREA: u32 = 70;
 const BAR_WIDTH: u32 = 400;
 const BAR_HEIGHT: u32 = 18;
 const MIN_WIDTH: u32 = 720;
+/// Outline colours of refined levels 1, 2, ...: white, orange, magenta, cyan.
+const LEVEL_COLOURS: [RGBColor; 4] = [
+    RGBColor(255, 255, 255),
+    RGBColor(255, 150, 0),
+    RGBColor(240, 0, 240),
+    RGBColor(0, 220, 255),
+];
 
 fn err<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> anyhow::Error {
     anyhow!("{e}")
@@ -140,6 +151,24 @@ pub(super) fn draw(path: &Path, p: &Picture) -> anyhow::Result<()> {
             colour_of(v, p.range).filled(),
         ))
         .map_err(err)?;
+    }
+
+    // Each level's outline: a black line under a coloured one, seen on any particle colour.
+    for (k, segments) in p.levels.iter().enumerate() {
+        let colour = LEVEL_COLOURS[k % LEVEL_COLOURS.len()];
+        for (style, width) in [(BLACK, 4), (colour, 2)] {
+            for s in segments {
+                let ends: Vec<(i32, i32)> = s
+                    .iter()
+                    .map(|&(x, y)| {
+                        let (px, py) = to_px(x, y);
+                        (px.round() as i32, py.round() as i32)
+                    })
+                    .collect();
+                root.draw(&PathElement::new(ends, style.stroke_width(width)))
+                    .map_err(err)?;
+            }
+        }
     }
 
     let red = RGBColor(220, 20, 20);

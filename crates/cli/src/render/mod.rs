@@ -1,12 +1,13 @@
 //! `mpm render`: one frame of a result store as a PNG picture of the particles coloured
 //! by a field (equal axes, a viridis colour bar), for documentation pictures; a 3D store
 //! seen along an axis, whole or a slab of it; optionally with the voids of a table in the
-//! store's metrics marked as red circles.
+//! store's metrics marked as red circles; a refined run's grid levels outlined.
 
 mod colour;
 mod draw;
 mod geometry;
 mod labels;
+mod levels;
 mod service;
 mod view;
 mod voids;
@@ -19,6 +20,7 @@ use anyhow::{Context, bail};
 use colour::finite_range;
 use draw::{Picture, draw};
 use geometry::{domain, picture_bounds, spacing_of};
+use levels::level_outlines;
 use mpm_io::ResultStore;
 use serde_json::Value;
 use std::path::PathBuf;
@@ -50,6 +52,8 @@ pub(crate) struct RenderArgs {
     pub slab: Option<String>,
     /// Draw each particle's square at the first frame's spacing deformed by its F.
     pub deformed: bool,
+    /// Leave out the outlines of a refined run's grid levels.
+    pub hide_levels: bool,
 }
 
 /// What was drawn.
@@ -67,6 +71,8 @@ pub(crate) struct Rendered {
     pub range: (f64, f64),
     /// Voids marked, when a table was drawn.
     pub voids: Option<usize>,
+    /// Refined grid levels outlined, when the run had some.
+    pub levels: Option<usize>,
 }
 
 /// Reads one frame of `args.store` and writes the picture to `args.out`.
@@ -216,6 +222,21 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         (w * h / points.len().max(1) as f64).sqrt()
     });
     let range = finite_range(&scalar);
+    let outlines = if args.hide_levels {
+        None
+    } else {
+        match level_outlines(attributes.get("scene"), dim, view.axes, view.slab, bounds) {
+            Ok(o) => o,
+            Err(message) => {
+                eprintln!("warning: {message}; drawing without the grid levels");
+                None
+            }
+        }
+    };
+    if let Some(o) = &outlines {
+        let noun = if o.len() == 1 { "level" } else { "levels" };
+        title = format!("{title}, {} refined {noun} outlined", o.len());
+    }
 
     std::fs::File::create(&args.out)
         .with_context(|| format!("cannot write `{}`", args.out.display()))?;
@@ -229,6 +250,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         title: &title,
         label: &label,
         voids: voids.as_deref().unwrap_or(&[]),
+        levels: outlines.as_deref().unwrap_or(&[]),
         axes: [view.axis_name(0), view.axis_name(1)],
     };
     if let Err(e) = draw(&args.out, &picture) {
@@ -242,6 +264,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
         label,
         range,
         voids: voids.map(|v| v.len()),
+        levels: outlines.map(|o| o.len()),
     })
 }
 

@@ -33,6 +33,7 @@ impl FrameRenderer for ServiceRenderer {
             plane: None,
             slab: None,
             deformed: false,
+            hide_levels: false,
         };
         let drawn = render(&args);
         let bytes = std::fs::read(&out);

@@ -1,6 +1,6 @@
 //! `mpm render` end to end: a short 2D run drawn as a PNG (with and without a voids table
 //! in the store's metrics), and the errors for a missing field, a frame out of range, an
-//! unwritable output, and the views of a 3D store.
+//! unwritable output, the views of a 3D store, and the outlines of a refined run's levels.
 
 use crate::common;
 
@@ -281,4 +281,72 @@ fn render_deformed_draws_a_stretched_body_whole() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("\"F\""), "{}", text(&o));
+}
+
+#[test]
+fn render_outlines_the_refined_levels_of_a_refined_run() {
+    // The vibrating bar with one level over x = 0.5–1.2: its region grows to the base
+    // elements it touches (x = 0.475–1.225) and reaches past the bar above and below, so
+    // the picture shows two vertical lines across the bar; `--no-levels` leaves them out.
+    let dir = tempfile::tempdir().unwrap();
+    let store = run_example(
+        dir.path(),
+        "vibrating-bar",
+        &[
+            "solver.end_time=0.01",
+            r#"solver.refinement={"levels":[{"boxes":[{"min":[0.5,-0.1],"max":[1.2,0.3]}]}]}"#,
+        ],
+    );
+    let o = mpm(
+        &["render", &store, "--field", "v", "--out", "levels.png"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(
+        text(&o).contains("1 refined level(s) outlined"),
+        "{}",
+        text(&o)
+    );
+    let o = mpm(
+        &[
+            "render",
+            &store,
+            "--field",
+            "v",
+            "--no-levels",
+            "--out",
+            "plain.png",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(!text(&o).contains("outlined"), "{}", text(&o));
+    let (width, height, with) = decode_png(&dir.path().join("levels.png"));
+    let (w2, h2, without) = decode_png(&dir.path().join("plain.png"));
+    assert_eq!((width, height), (w2, h2));
+    // Columns where the pictures differ, below the title (whose text differs) and above
+    // the axis labels and colour bar (the lowest 150 px).
+    let mut columns: Vec<u32> = (70..height.saturating_sub(150))
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .filter(|&(x, y)| {
+            let k = (y * width + x) as usize;
+            with[k] != without[k]
+        })
+        .map(|(x, _)| x)
+        .collect();
+    columns.sort_unstable();
+    columns.dedup();
+    let mut groups: Vec<(u32, u32)> = Vec::new();
+    for c in columns {
+        match groups.last_mut() {
+            // A white line on the white page beyond the bar differs by its black edges only.
+            Some(g) if c <= g.1 + 4 => g.1 = c,
+            _ => groups.push((c, c)),
+        }
+    }
+    assert_eq!(groups.len(), 2, "columns that differ: {groups:?}");
+    assert!(groups.iter().all(|g| g.1 - g.0 <= 6), "{groups:?}");
+    // 0.75 m apart on a 1.5 m wide picture drawn 1000 px wide: about 500 px.
+    let apart = groups[1].0 as f64 - groups[0].0 as f64;
+    assert!((apart - 500.0).abs() < 30.0, "{groups:?}");
 }
