@@ -486,18 +486,20 @@ impl<const D: usize> Boundaries<D> {
                 booked.friction += friction_loss(wall.contact, m, &before, v, &n);
             }
         }
-        self.apply_obstacles(x, t, m, v, &mut booked);
+        self.apply_obstacles(x, 0.0, t, m, v, &mut booked);
         booked
     }
 
     /// [`Self::apply_booked`] for a basis function centred at `x` anywhere (the refined
     /// grid's, `solver/refined.rs`): a wall holds it when `x` lies on the wall side of the
     /// wall's node plane (inclusive, to 1e-9 of a cell) of the grid with node 0 at
-    /// `origin` and spacing `dx`, as a node on or behind the plane is held.
+    /// `origin` and spacing `dx`, as a node on or behind the plane is held; an obstacle
+    /// holds it when `x` lies inside the obstacle or within `reach` of its surface.
     pub fn apply_booked_at(
         &self,
         x: &Vector<D>,
         grid: (&Vector<D>, f64),
+        reach: f64,
         t: f64,
         m: f64,
         v: &mut Vector<D>,
@@ -519,14 +521,16 @@ impl<const D: usize> Boundaries<D> {
                 booked.friction += friction_loss(wall.contact, m, &before, v, &n);
             }
         }
-        self.apply_obstacles(x, t, m, v, &mut booked);
+        self.apply_obstacles(x, reach, t, m, v, &mut booked);
         booked
     }
 
-    /// The obstacles' part of [`Self::apply_booked`], added to `booked`.
+    /// The obstacles' part of [`Self::apply_booked`], added to `booked`: each acts on a
+    /// point inside it or within `reach` of its surface.
     fn apply_obstacles(
         &self,
         x: &Vector<D>,
+        reach: f64,
         t: f64,
         m: f64,
         v: &mut Vector<D>,
@@ -536,7 +540,7 @@ impl<const D: usize> Boundaries<D> {
             // The obstacle has moved by velocity·t: evaluate at the point relative to it.
             let local = x - obstacle.velocity * t;
             let (phi, n) = obstacle.solid.distance_and_normal(&local);
-            if phi <= 0.0 {
+            if phi <= reach {
                 let before = *v;
                 let mut rel = *v - obstacle.velocity;
                 let rel_before = rel;

@@ -35,6 +35,7 @@ mod process_3d;
 mod process_chain;
 mod process_fill_chain;
 mod refinement;
+mod refinement_boundaries;
 mod render;
 mod resume;
 mod rom;

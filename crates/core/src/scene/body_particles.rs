@@ -118,6 +118,31 @@ impl Validator {
                 self.err(format!("{path}.shape"), message);
                 continue;
             }
+            // Split before the holes are cut and keep only the children inside the shape,
+            // so that a refined level outlines the shape and its holes at its own spacing,
+            // as a uniform run at that cell would (a child lies where that run's particle
+            // does).
+            if let Some(refinement) = &s.solver.refinement {
+                let before = body.volumes.len();
+                if let Err(message) = super::refinement::split_for_refinement(
+                    dim,
+                    refinement,
+                    &s.domain,
+                    &mut body,
+                    self.max_particles,
+                ) {
+                    self.err("solver.refinement", message);
+                    continue;
+                }
+                if body.volumes.len() != before && !matches!(b.shape, Shape::File { .. }) {
+                    let keep: Vec<bool> = body
+                        .positions
+                        .chunks_exact(dim)
+                        .map(|x| shape_contains(&b.shape, x))
+                        .collect();
+                    retain_particles(&mut body, dim, &keep);
+                }
+            }
             for (h_index, hole) in b.holes.iter().enumerate() {
                 if matches!(hole, Shape::File { .. } | Shape::Inflow(_)) {
                     self.err(
@@ -172,18 +197,6 @@ impl Validator {
                         s.domain.min[a], s.domain.max[a]
                     ),
                 );
-                continue;
-            }
-            if let Some(refinement) = &s.solver.refinement
-                && let Err(message) = super::refinement::split_for_refinement(
-                    dim,
-                    refinement,
-                    &s.domain,
-                    &mut body,
-                    self.max_particles,
-                )
-            {
-                self.err("solver.refinement", message);
                 continue;
             }
             body.velocities = initial_velocities(dim, &body.positions, b.velocity.as_ref());

@@ -58,19 +58,58 @@ impl Refinement {
         let cells: [usize; D] = std::array::from_fn(|d| {
             ((domain.max[d] - domain.min[d]) / dx - 1e-9).ceil() as usize + 2 * pad
         });
+        let planes = mirror_planes::<D>(domain);
         let boxes: Vec<Vec<(Vector<D>, Vector<D>)>> = self
             .levels
             .iter()
             .map(|level| {
-                level
+                let mut boxes: Vec<(Vector<D>, Vector<D>)> = level
                     .boxes
                     .iter()
                     .map(|b| (vector_from_slice(&b.min), vector_from_slice(&b.max)))
-                    .collect()
+                    .collect();
+                for &(axis, plane) in &planes {
+                    for k in 0..boxes.len() {
+                        let (mut lo, mut hi) = boxes[k];
+                        (lo[axis], hi[axis]) = (2.0 * plane - hi[axis], 2.0 * plane - lo[axis]);
+                        boxes.push((lo, hi));
+                    }
+                }
+                boxes
             })
             .collect();
         Levels::for_grid(min, dx, cells, &boxes)
     }
+}
+
+/// The planes (axis, position) of the domain's stick and symmetry walls. Each level's
+/// boxes are mirrored across them (the images lie in the grid's padding, or are cut off
+/// it), so the levels are symmetric about every such wall and the refined step's fold of
+/// the functions behind a wall onto their mirror images is exact, as on the uniform grid.
+fn mirror_planes<const D: usize>(domain: &Domain) -> Vec<(usize, f64)> {
+    use super::Contact;
+    let dx = domain.cell_size;
+    let mut planes = Vec::new();
+    for wall in &domain.walls {
+        if !matches!(wall.condition, Contact::Stick | Contact::Symmetry) {
+            continue;
+        }
+        let inset = wall.thickness.max(1) as f64 - 1.0;
+        for side in &wall.sides {
+            let (axis, upper) = side.axis_and_upper();
+            if axis >= D {
+                continue;
+            }
+            let plane = if upper {
+                let cells = ((domain.max[axis] - domain.min[axis]) / dx - 1e-9).ceil();
+                domain.min[axis] + (cells - inset) * dx
+            } else {
+                domain.min[axis] + inset * dx
+            };
+            planes.push((axis, plane));
+        }
+    }
+    planes
 }
 
 impl Validator {
@@ -201,7 +240,8 @@ fn region_sizes<const D: usize>(levels: &Levels<D>) -> Vec<usize> {
 /// Splits every particle of `body` that lies in a refined region into 2^D children per
 /// level it lies below (`crate::refinement::split`: at its sub-cells' centres, each with
 /// 1/2^D of the volume), so that a level's cells start with as many particles as the base
-/// level's. The shape's outline keeps the base spacing. Called before the initial
+/// level's. The caller then cuts holes and drops children outside the shape, so the
+/// outline follows each level's spacing. Called before the initial
 /// velocities are set, so they are evaluated at the children's places. Stops, saying so,
 /// once the body would hold more than `max_particles`.
 pub(super) fn split_for_refinement(

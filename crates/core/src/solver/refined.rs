@@ -71,6 +71,9 @@ pub(super) struct Refined<const D: usize> {
     basis: ThbBasis<D>,
     /// Every active function's centre, m.
     centers: Vec<Vector<D>>,
+    /// How far outside an obstacle each function's centre may lie and still be held, m:
+    /// 0 on the base level, half the level's cell on a refined one (`new`).
+    obstacle_reach: Vec<f64>,
     grid: LevelGrid<D>,
     /// Force per function, N (N/m in 2D).
     force: Vec<Vector<D>>,
@@ -96,9 +99,21 @@ impl<const D: usize> Refined<D> {
         let finest_spacing = levels.level_spacing(finest);
         let basis = ThbBasis::new(levels);
         let centers = (0..basis.len() as u32).map(|id| basis.center(id)).collect();
+        // A refined level's function centres lie half its cell off the node planes of a
+        // uniform grid of its cell, where scenes put obstacle faces (just short of a node
+        // plane, so that a uniform grid holds the nodes on it): held only when inside, the
+        // free function beside the face reaches past the body's surface and leaves it
+        // traction-free under the obstacle. Reaching half a cell out holds it instead.
+        let obstacle_reach = (0..basis.len() as u32)
+            .map(|id| match basis.function(id).0 {
+                0 => 0.0,
+                level => 0.5 * basis.levels().level_spacing(level),
+            })
+            .collect();
         Self {
             basis,
             centers,
+            obstacle_reach,
             grid: LevelGrid::default(),
             force: Vec::new(),
             slabs: Vec::new(),
@@ -274,9 +289,14 @@ impl<const D: usize> Refined<D> {
             if damping < 1.0 {
                 *v *= damping;
             }
-            let booked = sim
-                .boundaries
-                .apply_booked_at(&self.centers[i], grid, time, m, v);
+            let booked = sim.boundaries.apply_booked_at(
+                &self.centers[i],
+                grid,
+                self.obstacle_reach[i],
+                time,
+                m,
+                v,
+            );
             work.boundaries += booked.work;
             work.friction += booked.friction;
             if damping < 1.0 && booked.work == 0.0 {
