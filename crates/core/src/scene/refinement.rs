@@ -240,10 +240,10 @@ fn region_sizes<const D: usize>(levels: &Levels<D>) -> Vec<usize> {
 /// Splits every particle of `body` that lies in a refined region into 2^D children per
 /// level it lies below (`crate::refinement::split`: at its sub-cells' centres, each with
 /// 1/2^D of the volume), so that a level's cells start with as many particles as the base
-/// level's. The caller then cuts holes and drops children outside the shape, so the
-/// outline follows each level's spacing. Called before the initial
-/// velocities are set, so they are evaluated at the children's places. Stops, saying so,
-/// once the body would hold more than `max_particles`.
+/// level's. The caller then drops the children outside the shape and cuts the holes, so
+/// both follow each level's spacing. Called before the initial velocities are set, so
+/// they are evaluated at the children's places. Stops, saying so, once the body would hold
+/// more than `max_particles`.
 pub(super) fn split_for_refinement(
     dim: usize,
     refinement: &Refinement,
