@@ -494,7 +494,8 @@ impl<const D: usize> Boundaries<D> {
     /// grid's, `solver/refined.rs`): a wall holds it when `x` lies on the wall side of the
     /// wall's node plane (inclusive, to 1e-9 of a cell) of the grid with node 0 at
     /// `origin` and spacing `dx`, as a node on or behind the plane is held; an obstacle
-    /// holds it when `x` lies inside the obstacle or within `reach` of its surface.
+    /// holds it when `x` lies inside the obstacle, a stick obstacle not moving along its
+    /// normal there also when `x` lies within `reach` of its surface.
     pub fn apply_booked_at(
         &self,
         x: &Vector<D>,
@@ -526,7 +527,9 @@ impl<const D: usize> Boundaries<D> {
     }
 
     /// The obstacles' part of [`Self::apply_booked`], added to `booked`: each acts on a
-    /// point inside it or within `reach` of its surface.
+    /// point inside it, and a stick obstacle that does not move along its normal there (a
+    /// grip the body is glued to) also on a point within `reach` of its surface. Other
+    /// obstacles act inside only: within reach, an impactor would meet the body early.
     fn apply_obstacles(
         &self,
         x: &Vector<D>,
@@ -540,7 +543,9 @@ impl<const D: usize> Boundaries<D> {
             // The obstacle has moved by velocity·t: evaluate at the point relative to it.
             let local = x - obstacle.velocity * t;
             let (phi, n) = obstacle.solid.distance_and_normal(&local);
-            if phi <= reach {
+            let glued = matches!(obstacle.contact, Contact::Stick)
+                && obstacle.velocity.dot(&n).abs() <= 1e-12 * obstacle.velocity.norm();
+            if phi <= if glued { reach } else { 0.0 } {
                 let before = *v;
                 let mut rel = *v - obstacle.velocity;
                 let rel_before = rel;

@@ -71,7 +71,7 @@ pub(super) struct Refined<const D: usize> {
     basis: ThbBasis<D>,
     /// Every active function's centre, m.
     centers: Vec<Vector<D>>,
-    /// How far outside an obstacle each function's centre may lie and still be held, m:
+    /// How far outside a stick grip each function's centre may lie and still be held, m:
     /// 0 on the base level, half the level's cell on a refined one (`new`).
     obstacle_reach: Vec<f64>,
     grid: LevelGrid<D>,
@@ -103,7 +103,8 @@ impl<const D: usize> Refined<D> {
         // uniform grid of its cell, where scenes put obstacle faces (just short of a node
         // plane, so that a uniform grid holds the nodes on it): held only when inside, the
         // free function beside the face reaches past the body's surface and leaves it
-        // traction-free under the obstacle. Reaching half a cell out holds it instead.
+        // traction-free under the obstacle. Reaching half a cell out holds it instead
+        // (stick obstacles not moving along their normal only: `Boundaries::apply_booked_at`).
         let obstacle_reach = (0..basis.len() as u32)
             .map(|id| match basis.function(id).0 {
                 0 => 0.0,
