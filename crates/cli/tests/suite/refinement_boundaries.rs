@@ -337,3 +337,46 @@ fn a_refined_level_does_not_reach_out_to_an_impactor() {
         "{refined_late} vs {fine_late}"
     );
 }
+
+#[test]
+fn a_round_body_is_outlined_at_the_refined_level_spacing() {
+    // A disc refined over part of its outline: there its particles are exactly the uniform
+    // 0.025 m run's, those whose parents lay just outside the disc included (the body is
+    // filled half a particle diagonal past its surface, split, then cut to the disc).
+    let dir = tempfile::tempdir().unwrap();
+    let mut stores = Vec::new();
+    for (name, cell, refined) in [("uniform", 0.025, false), ("refined", 0.05, true)] {
+        let mut scene = serde_json::json!({
+            "name": name,
+            "dimension": 2,
+            "domain": {"min": [0.0, 0.0], "max": [1.0, 1.0], "cell_size": cell},
+            "solver": {"end_time": 1e-3, "kernel": "bspline2", "transfer": "apic",
+                       "scheme": "usl"},
+            "materials": {"disc": {"type": "linear_elastic", "density": 1000.0,
+                                   "youngs_modulus": 1.0e6, "poisson_ratio": 0.3}},
+            "bodies": [{"name": "disc", "material": "disc",
+                        "shape": {"sphere": {"center": [0.5, 0.5], "radius": 0.3}},
+                        "particles_per_cell": 2}],
+            "output": {"frames": 1, "fields": ["x"]}
+        });
+        if refined {
+            scene["solver"]["refinement"] = serde_json::json!({"levels": [{"boxes": [{"min": [0.55, 0.3], "max": [0.9, 0.7]}]}]});
+        }
+        let path = write_scene(dir.path(), &format!("{name}.json"), &scene);
+        let store = dir.path().join(format!("{name}.zarr"));
+        let m = run_to_store(&load(&path, &[]), &store);
+        assert_eq!(m.outcome, Some(Outcome::Finished), "{name}");
+        stores.push(store);
+    }
+    let (lo, hi) = ([0.56, 0.31], [0.89, 0.69]);
+    let uniform = positions_within(&stores[0], lo, hi);
+    let refined = positions_within(&stores[1], lo, hi);
+    let extra = refined.difference(&uniform).count();
+    let missing = uniform.difference(&refined).count();
+    println!(
+        "{} particles in the box uniform, {} refined; {extra} only refined, {missing} only uniform",
+        uniform.len(),
+        refined.len()
+    );
+    assert_eq!((extra, missing), (0, 0));
+}

@@ -50,19 +50,34 @@ impl Validator {
             };
             // Only the lattice points where particles may lie are visited (`budget`).
             let region = budget::body_region(&domain, dx, b.clip_to_domain);
-            let bounds = lattice::bounding_box(dim, &b.shape).map(|r| r.intersect(&region));
+            // With refined levels a round shape is first filled out to `grow` past its
+            // surface: a particle just outside it may have children (split below) inside it,
+            // as a uniform run at the level's cell has particles there. The children and
+            // particles outside the shape are dropped after the split.
+            let grow = if s.solver.refinement.is_some() {
+                0.5 * h * (dim as f64).sqrt()
+            } else {
+                0.0
+            };
+            let bounds = lattice::bounding_box(dim, &b.shape).map(|mut r| {
+                for a in 0..dim {
+                    r.lo[a] -= grow;
+                    r.hi[a] += grow;
+                }
+                r.intersect(&region)
+            });
             let bounds = bounds.unwrap_or(region);
             let filled = match &b.shape {
                 Shape::Box { min, max } => lattice::fill_box(dim, min, max, h, &region, &mut body),
                 Shape::Sphere { center, radius } => lattice::fill_lattice(
                     dim,
                     center,
-                    *radius,
+                    *radius + grow,
                     h,
                     [0.5; 3],
                     &bounds,
                     &mut body,
-                    |r| r.iter().map(|x| x * x).sum::<f64>() <= radius * radius,
+                    |r| r.iter().map(|x| x * x).sum::<f64>() <= (radius + grow).powi(2),
                 ),
                 Shape::Cylinder {
                     center,
@@ -72,7 +87,7 @@ impl Validator {
                 } => {
                     let norm = axis.iter().map(|x| x * x).sum::<f64>().sqrt();
                     let a: Vec<f64> = axis.iter().map(|x| x / norm).collect();
-                    let reach = (radius * radius + length * length / 4.0).sqrt();
+                    let reach = (radius * radius + length * length / 4.0).sqrt() + grow;
                     // Along a coordinate axis, fit the layers to the length exactly: an odd
                     // number of layers puts one on the centre, an even number straddles it.
                     let mut offset = [0.5; 3];
@@ -85,7 +100,7 @@ impl Validator {
                     lattice::fill_lattice(dim, center, reach, h, offset, &bounds, &mut body, |r| {
                         let along: f64 = r.iter().zip(&a).map(|(x, y)| x * y).sum();
                         let r2: f64 = r.iter().map(|x| x * x).sum::<f64>() - along * along;
-                        along.abs() <= length / 2.0 && r2 <= radius * radius
+                        along.abs() <= length / 2.0 + grow && r2 <= (radius + grow).powi(2)
                     })
                 }
                 Shape::File { path: file, format } => {
@@ -118,7 +133,7 @@ impl Validator {
                 self.err(format!("{path}.shape"), message);
                 continue;
             }
-            // Split before the holes are cut and keep only the children inside the shape,
+            // Split before the holes are cut and keep only the particles inside the shape,
             // so that a refined level outlines the shape and its holes at its own spacing,
             // as a uniform run at that cell would (a child lies where that run's particle
             // does).
@@ -134,7 +149,9 @@ impl Validator {
                     self.err("solver.refinement", message);
                     continue;
                 }
-                if body.volumes.len() != before && !matches!(b.shape, Shape::File { .. }) {
+                if (grow > 0.0 || body.volumes.len() != before)
+                    && !matches!(b.shape, Shape::File { .. })
+                {
                     let keep: Vec<bool> = body
                         .positions
                         .chunks_exact(dim)
