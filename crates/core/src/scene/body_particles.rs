@@ -138,7 +138,6 @@ impl Validator {
             // as a uniform run at that cell would (a child lies where that run's particle
             // does).
             if let Some(refinement) = &s.solver.refinement {
-                let before = body.volumes.len();
                 if let Err(message) = super::refinement::split_for_refinement(
                     dim,
                     refinement,
@@ -149,9 +148,8 @@ impl Validator {
                     self.err("solver.refinement", message);
                     continue;
                 }
-                if (grow > 0.0 || body.volumes.len() != before)
-                    && !matches!(b.shape, Shape::File { .. })
-                {
+                // (`grow` > 0 here: even unsplit particles may lie past the shape.)
+                if !matches!(b.shape, Shape::File { .. }) {
                     let keep: Vec<bool> = body
                         .positions
                         .chunks_exact(dim)
