@@ -29,6 +29,7 @@ mod liquid;
 mod liquid_inflow;
 mod liquid_voids;
 mod loads;
+mod navier_slip;
 mod phase_change;
 mod pressure_inlet;
 mod process_3d;

@@ -12,6 +12,7 @@ mod cantilever_elastica;
 mod kirsch_plate;
 mod layered_strip;
 mod peak_displacement;
+mod poiseuille_slip;
 mod poiseuille_startup;
 mod vibrating_bar;
 
@@ -19,6 +20,7 @@ pub use bimaterial_strip::bimaterial_curvature;
 pub use cantilever_elastica::heavy_elastica_tip_deflection;
 pub use kirsch_plate::kirsch_stress_along_load;
 pub use layered_strip::{Layer, LayeredStripParams, layered_strip_solution};
+pub use poiseuille_slip::poiseuille_slip_startup_profile;
 pub use poiseuille_startup::{poiseuille_startup_profile, poiseuille_startup_velocity};
 
 use crate::output::Comparison;

@@ -1,6 +1,7 @@
 //! Plane Poiseuille flow starting from rest: the series solution and the reference that
 //! compares a run's flow velocity with it.
 
+use super::poiseuille_slip::poiseuille_slip_startup_profile;
 use super::{Frame, Reference, ReferenceFactory, ReferenceLaw, TypedReferenceFactory};
 use crate::scene::{Issue, Scene};
 use crate::section::Checks;
@@ -9,12 +10,14 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// Plane Poiseuille flow starting from rest under a constant pressure gradient between
-/// no-slip plates at `wall` and `wall + gap` on `cross_axis` (Fourier series solution).
+/// plates at `wall` and `wall + gap` on `cross_axis` (Fourier series solution): no-slip
+/// plates, or plates with Navier slip of `slip_length` (`poiseuille_slip.rs`).
 /// The measured velocity is the shared particle field `flow_velocity_x`, `_y` or `_z`
 /// for `axis` 0, 1 or 2 where a physics (underfill's cross-section mode) creates it, else
 /// the particles' own velocity along `axis` (liquid particles moved by the mechanics);
 /// error: RMS velocity error over particles and output frames
-/// after t = 0, divided by the steady centre-line velocity `G h²/(8μ)`.
+/// after t = 0, divided by the steady centre-line velocity (`G h²/(8μ)` without slip,
+/// `G(h²/4 + b·h)/(2μ)` with it).
 #[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoiseuilleStartupParams {
@@ -32,6 +35,9 @@ pub struct PoiseuilleStartupParams {
     pub viscosity: f64,
     /// Density, kg/m³.
     pub density: f64,
+    /// Navier slip length b of both plates, m (> 0); without it the plates are no-slip.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slip_length: Option<f64>,
 }
 
 /// The velocity error accumulated over frames.
@@ -61,14 +67,19 @@ impl ReferenceLaw for PoiseuilleStartup {
             Some(field) => field[i],
             None => particles.velocity[i][p.axis],
         };
-        let exact = poiseuille_startup_profile(
+        let (t, h, g, mu, rho) = (
             frame.time,
             p.gap,
             p.pressure_gradient,
             p.viscosity,
             p.density,
         );
-        let centre = p.pressure_gradient * p.gap * p.gap / (8.0 * p.viscosity);
+        let exact: Box<dyn Fn(f64) -> f64> = match p.slip_length {
+            Some(b) => Box::new(poiseuille_slip_startup_profile(t, h, g, mu, rho, b)),
+            None => Box::new(poiseuille_startup_profile(t, h, g, mu, rho)),
+        };
+        let slip = p.slip_length.unwrap_or(0.0);
+        let centre = g * (h * h / 4.0 + slip * h) / (2.0 * mu);
         let (mut sum, mut sum_exact, mut n) = (0.0, 0.0, 0.0);
         for (i, x) in particles.position.iter().enumerate() {
             // Particles without volume (an inlet's waiting ones) are no liquid.
@@ -116,6 +127,9 @@ fn check(p: &PoiseuilleStartupParams, path: &str, dimension: usize) -> Result<()
     c.positive("pressure_gradient", p.pressure_gradient);
     c.positive("viscosity", p.viscosity);
     c.positive("density", p.density);
+    if let Some(b) = p.slip_length {
+        c.positive("slip_length", b);
+    }
     c.finish()
 }
 
@@ -258,6 +272,11 @@ mod tests {
                 "reference.density",
                 "> 0",
             ),
+            (
+                serde_json::json!({"slip_length": 0.0}),
+                "reference.slip_length",
+                "> 0",
+            ),
         ];
         assert_each_names_its_path(
             factory().as_ref(),
@@ -273,6 +292,7 @@ mod tests {
             pressure_gradient: f64::NAN,
             viscosity: 0.5,
             density: 1000.0,
+            slip_length: None,
         };
         let found = check(&typed, "reference", 2).unwrap_err();
         let paths: Vec<&str> = found.iter().map(|i| i.path.as_str()).collect();

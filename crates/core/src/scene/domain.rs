@@ -100,6 +100,14 @@ pub enum Contact {
     /// wall, so a half or quarter model gives the full model's answer. Unlike `slip` it
     /// holds the body in both directions and mirrors the grid behind the wall.
     Symmetry,
+    /// Navier slip (liquids in incompressible mechanics only): like `slip` across the
+    /// surface, and along it a viscous drag τ = −μ·v_t/b, so the liquid slides with
+    /// v_t = b·∂v_t/∂n: between `stick` (b → 0) and `slip` (b → ∞). A moving contact line
+    /// needs it on a resolved scale; `stick` holds the line still but for the grid's own slip.
+    Navier {
+        /// Slip length b, m (> 0).
+        slip_length: f64,
+    },
 }
 
 impl Domain {
@@ -188,6 +196,22 @@ impl Contact {
                 format!("{path}.friction.coefficient"),
                 "must be a finite number >= 0",
             );
+        }
+        if let Contact::Navier { slip_length } = self
+            && !(slip_length.is_finite() && slip_length > 0.0)
+        {
+            v.err(
+                format!("{path}.navier.slip_length"),
+                "must be a finite number > 0 (m)",
+            );
+        }
+    }
+
+    /// The slip length of a Navier surface (none for the other laws).
+    pub fn slip_length(self) -> Option<f64> {
+        match self {
+            Contact::Navier { slip_length } => Some(slip_length),
+            _ => None,
         }
     }
 }

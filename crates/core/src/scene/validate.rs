@@ -282,6 +282,7 @@ impl Validator {
                 );
             }
         }
+        self.check_navier_surfaces(s);
         if s.materials.is_empty() {
             self.err("materials", "at least one material is needed");
         }
@@ -300,6 +301,35 @@ impl Validator {
         s.output
             .validate(self, s.domain.cell_size, s.materials.keys());
         s.stop.validate(self);
+    }
+
+    /// Navier slip is a liquid's wall law: its drag reads the liquid's viscosity, which only
+    /// the incompressible mode solves for.
+    fn check_navier_surfaces(&mut self, s: &Scene) {
+        if matches!(s.solver.mechanics, Mechanics::Incompressible(_)) {
+            return;
+        }
+        let walls = s
+            .domain
+            .walls
+            .iter()
+            .enumerate()
+            .map(|(i, w)| (format!("domain.walls[{i}].condition"), w.condition));
+        let obstacles = s
+            .obstacles
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (format!("obstacles[{i}].condition"), o.condition));
+        for (path, condition) in walls.chain(obstacles) {
+            if condition.slip_length().is_some() {
+                self.err(
+                    path,
+                    "`navier` slip acts on liquids in incompressible mechanics \
+                     (solver.mechanics: {\"incompressible\": {}}); use `slip`, `stick` or \
+                     `friction` here",
+                );
+            }
+        }
     }
 
     /// Builds the scene's reference with the factory its `type` names.

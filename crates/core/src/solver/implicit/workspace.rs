@@ -427,7 +427,8 @@ impl<const D: usize> Workspace<D> {
                                 prescribed[k * D + d] = du[d];
                             }
                         }
-                        Contact::Slip | Contact::Symmetry => {
+                        // Navier walls are refused outside incompressible mechanics.
+                        Contact::Slip | Contact::Symmetry | Contact::Navier { .. } => {
                             if let Some(axis) = (0..D).find(|&d| n[d].abs() > 1.0 - 1e-12) {
                                 mask[k * D + axis] = 0.0;
                                 prescribed[k * D + axis] = du[axis];

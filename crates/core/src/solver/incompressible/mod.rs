@@ -50,6 +50,7 @@ mod enclosed_air;
 mod energy_balance;
 mod extrapolate;
 pub(super) mod inflow;
+mod navier_slip;
 mod outflow;
 mod pressure;
 mod pressure_inlet;
@@ -131,6 +132,8 @@ pub(super) struct Incompressible<const D: usize> {
     capillary: Option<capillary_first::CapillaryFirst>,
     /// The gas in the pockets the liquid encloses (`enclosed_air`), else `None`.
     air: Option<enclosed_air::EnclosedAir>,
+    /// The drag of Navier-slip walls and obstacles (empty without them).
+    navier: navier_slip::NavierDrag<D>,
     /// With implicit viscosity: the volume source's own right-hand side and pressure, and
     /// whether this step has one (see `incremental_pressure`).
     source_rhs: Vec<f64>,
@@ -150,6 +153,7 @@ impl<const D: usize> Incompressible<D> {
             capillary: (settings.viscosity == ViscousIntegration::Implicit)
                 .then(capillary_first::CapillaryFirst::default),
             air: settings.enclosed_air.map(enclosed_air::EnclosedAir::new),
+            navier: navier_slip::NavierDrag::default(),
             source_rhs: Vec::new(),
             source_pressure: Vec::new(),
             source_solved: false,
@@ -322,8 +326,12 @@ where
             viscosity.add_pressure_force(&mut self.free_velocity, &mut self.pressure, dt);
         }
         self.capillary_first(sim, dt);
+        let navier = sim.boundaries.has_navier().then_some(&mut self.navier);
         if let Some(viscosity) = self.viscosity.as_mut() {
-            viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity);
+            viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity, navier);
+        } else if let Some(navier) = navier {
+            navier.apply_explicit(sim, dt, &mut self.free_velocity);
+            sim.ledger.viscous += navier.dissipation(&self.free_velocity, dt);
         }
         self.project(sim, dt);
         self.incremental_pressure(&sim.grid);

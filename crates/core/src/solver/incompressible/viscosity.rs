@@ -29,7 +29,8 @@
 //! behind stick and symmetry walls are no unknowns: the operator gives them the image of
 //! their mirror node before it computes ∇v_p and folds what lands on them back (the
 //! transpose), so particles beside a wall see the odd tangential velocity the explicit
-//! mode's mirrored ghosts give them. Friction acts as slip inside the solve; the Coulomb
+//! mode's mirrored ghosts give them; behind a Navier wall the tangential components take
+//! (b − d)/(b + d) of the front's (`boundary::Image`). Friction acts as slip inside the solve; the Coulomb
 //! rule acts on the result when the walls act after the projection. The unknowns are all
 //! nodes with (folded) P2G mass, including those beyond the liquid cells that B-splines
 //! reach, which is natural for an operator built from the particles.
@@ -51,6 +52,7 @@
 use super::super::DimensionDispatch;
 use super::super::interpolation::build_interpolation;
 use super::super::simulation::Simulation;
+use super::navier_slip::NavierDrag;
 use crate::kernels::Kernel;
 use crate::linear_solvers::conjugate_gradient::{Solve, Work, solve_preconditioned};
 use crate::material::{MAX_SHARED_READS, Material, ViscosityBatch};
@@ -59,27 +61,42 @@ use crate::physics::{Interpolation, PhysicsFault};
 use crate::scene::{Contact, IncompressibleSettings};
 use rayon::prelude::*;
 
-/// A ghost node behind a stick or symmetry wall and the node it mirrors.
+/// A ghost node behind a stick, symmetry or Navier wall and the node it mirrors.
 #[derive(Clone, Copy, Debug)]
 struct Mirror {
     ghost: u32,
     front: u32,
     axis: u8,
-    symmetry: bool,
+    /// The factor of the front's normal component the ghost takes.
+    normal: f64,
+    /// The factor of the front's tangential components the ghost takes.
+    tangential: f64,
 }
 
 impl Mirror {
-    /// The factor component `d` of the front's velocity takes on the ghost: behind a
-    /// stick wall the tangential components are odd (no slip) and the normal one even
-    /// (the velocity before the projection still carries the normal motion the walls will
-    /// stop, and at a no-slip wall ∂v_n/∂n = −∇_t·v_t = 0); behind a symmetry wall the
-    /// normal component is odd and the tangential ones even.
+    /// A ghost behind a stick wall (`symmetry` false) or a symmetry wall: behind a stick
+    /// wall the tangential components are odd (no slip) and the normal one even (the
+    /// velocity before the projection still carries the normal motion the walls will stop,
+    /// and at a no-slip wall ∂v_n/∂n = −∇_t·v_t = 0); behind a symmetry wall the normal
+    /// component is odd and the tangential ones even.
+    fn of_wall(ghost: u32, front: u32, axis: u8, symmetry: bool) -> Self {
+        let (normal, tangential) = if symmetry { (-1.0, 1.0) } else { (1.0, -1.0) };
+        Self {
+            ghost,
+            front,
+            axis,
+            normal,
+            tangential,
+        }
+    }
+
+    /// The factor component `d` of the front's velocity takes on the ghost.
     #[inline]
     fn sign(&self, d: usize) -> f64 {
-        if (d == self.axis as usize) == self.symmetry {
-            -1.0
+        if d == self.axis as usize {
+            self.normal
         } else {
-            1.0
+            self.tangential
         }
     }
 }
@@ -101,6 +118,9 @@ struct Operator<const D: usize> {
     mask: Vec<f64>,
     /// Components along general (not axis-aligned) normals a node may not change.
     normals: Vec<(u32, Vector<D>)>,
+    /// Per node: the drag C_i of Navier-slip surfaces on it (navier_slip.rs; empty
+    /// without them).
+    drag: Vec<f64>,
 }
 
 impl<const D: usize> Operator<D> {
@@ -203,6 +223,15 @@ impl<const D: usize> Operator<D> {
                 }
             }
         }
+        // The Navier surfaces' drag, C_i on the (projected) operand: its tangential part.
+        let operand: &[f64] = if operand_projected { full } else { x };
+        for (i, c) in self.drag.iter().enumerate() {
+            if *c != 0.0 {
+                for d in 0..D {
+                    y[i * D + d] += c * operand[i * D + d];
+                }
+            }
+        }
         self.project(y);
     }
 
@@ -226,9 +255,10 @@ impl<const D: usize> Operator<D> {
             }
         }
         for (i, m) in self.mass_rate.iter().enumerate() {
+            let drag = self.drag.get(i).copied().unwrap_or(0.0);
             for d in 0..D {
                 let k = i * D + d;
-                let diagonal = out[k] + m;
+                let diagonal = out[k] + m + drag;
                 out[k] = if self.mask[k] > 0.0 && diagonal > 0.0 {
                     1.0 / diagonal
                 } else {
@@ -305,13 +335,29 @@ impl<const D: usize> ImplicitViscosity<D> {
             mirrors.clear();
             sim.boundaries
                 .for_each_mirror_node(grid.nodes, |ghost, front, axis, symmetry| {
+                    mirrors.push(Mirror::of_wall(
+                        grid.index(ghost) as u32,
+                        grid.index(front) as u32,
+                        axis as u8,
+                        symmetry,
+                    ));
+                });
+            // Behind a Navier wall the tangential components take the line through the
+            // front's that meets v = b·∂v/∂n on the wall; the normal one is even, as behind
+            // a stick wall.
+            sim.boundaries.for_each_navier_mirror_node(
+                grid.nodes,
+                grid.dx,
+                |ghost, front, axis, tangential| {
                     mirrors.push(Mirror {
                         ghost: grid.index(ghost) as u32,
                         front: grid.index(front) as u32,
                         axis: axis as u8,
-                        symmetry,
+                        normal: 1.0,
+                        tangential,
                     });
-                });
+                },
+            );
             self.mirrored = true;
         }
     }
@@ -391,38 +437,8 @@ impl<const D: usize> ImplicitViscosity<D> {
         let particles = &sim.particles;
         let n = particles.len();
         let coefficient = &mut self.operator.coefficient;
-        coefficient.resize(n, 0.0);
         self.scratch.stress.resize(n, Matrix::<D>::zeros());
-        self.least_viscosity.clear();
-        for group in &particles.groups {
-            let range = group.range.clone();
-            let material = group.material.as_ref();
-            let reads: [&[f64]; MAX_SHARED_READS] = std::array::from_fn(|k| {
-                material
-                    .shared_reads()
-                    .get(k)
-                    .and_then(|r| particles.shared.get(r.name))
-                    .map_or(&[][..], |f| &f[range.clone()])
-            });
-            let velocity_gradient = if particles.velocity_gradient.is_empty() {
-                &[][..]
-            } else {
-                &particles.velocity_gradient[range.clone()]
-            };
-            let viscosity = &mut coefficient[range];
-            material.viscosities(ViscosityBatch {
-                velocity_gradient,
-                shared: reads,
-                viscosity: &mut *viscosity,
-            });
-            let least = viscosity
-                .iter()
-                .copied()
-                .filter(|c| c.is_finite() && *c >= 0.0)
-                .fold(f64::INFINITY, f64::min);
-            self.least_viscosity
-                .push(if least.is_finite() { least } else { 0.0 });
-        }
+        particle_viscosities(particles, coefficient, &mut self.least_viscosity);
         let mut bad = None;
         for (p, c) in coefficient.iter_mut().enumerate() {
             if !(c.is_finite() && *c >= 0.0) {
@@ -486,7 +502,10 @@ impl<const D: usize> ImplicitViscosity<D> {
                             mask.fill(0.0);
                             v = n * n.dot(&v) + (surface - n * n.dot(&surface));
                         }
-                        Contact::Slip | Contact::Symmetry | Contact::Friction { .. } => {
+                        Contact::Slip
+                        | Contact::Symmetry
+                        | Contact::Friction { .. }
+                        | Contact::Navier { .. } => {
                             if let Some(axis) = (0..D).find(|&d| n[d].abs() > 1.0 - 1e-12) {
                                 mask[axis] = 0.0;
                             } else {
@@ -499,6 +518,11 @@ impl<const D: usize> ImplicitViscosity<D> {
             for d in 0..D {
                 self.start[i * D + d] = v[d];
             }
+        }
+        // Ghosts are no unknowns (a Navier wall's keep their P2G mass: nothing is folded).
+        for m in &op.mirrors {
+            op.mass_rate[m.ghost as usize] = 0.0;
+            op.mask[m.ghost as usize * D..(m.ghost as usize + 1) * D].fill(0.0);
         }
     }
 
@@ -513,6 +537,7 @@ impl<const D: usize> ImplicitViscosity<D> {
         settings: &IncompressibleSettings,
         dt: f64,
         velocity: &mut [Vector<D>],
+        navier: Option<&mut NavierDrag<D>>,
     ) where
         dyn Material: DimensionDispatch<D>,
     {
@@ -527,7 +552,19 @@ impl<const D: usize> ImplicitViscosity<D> {
             });
         }
         self.constrain(sim, sim.time + dt, dt, velocity);
-        // (M/dt + K)(v₀ + δ) = (M/dt) v₀ on the free subspace: P A P δ = -P K v₀.
+        let mut navier = navier;
+        match navier.as_deref_mut() {
+            Some(navier) => navier.for_implicit_solve(
+                sim,
+                sim.time + dt,
+                &self.operator.interp,
+                &self.operator.coefficient,
+                &mut self.operator.drag,
+            ),
+            None => self.operator.drag.clear(),
+        }
+        // (M/dt + K + C)(v₀ + δ) = (M/dt) v₀ + C V on the free subspace, with C the Navier
+        // surfaces' drag and V their velocity: P A P δ = -P (K + C) v₀ + P C V.
         let Self {
             operator,
             scratch,
@@ -543,9 +580,15 @@ impl<const D: usize> ImplicitViscosity<D> {
         } = self;
         operator.product(start, rhs, scratch, false);
         rhs.iter_mut().for_each(|b| *b = -*b);
+        if let Some(navier) = navier.as_deref() {
+            navier.add_surface_velocity(rhs);
+            operator.project(rhs);
+        }
         delta.fill(0.0);
         operator.inverse_diagonal(inverse_diagonal);
-        let result = if operator.coefficient.iter().any(|&c| c > 0.0) {
+        let result = if operator.coefficient.iter().any(|&c| c > 0.0)
+            || operator.drag.iter().any(|&c| c > 0.0)
+        {
             let op = &*operator;
             let inverse = &*inverse_diagonal;
             solve_preconditioned(
@@ -585,6 +628,51 @@ impl<const D: usize> ImplicitViscosity<D> {
                 v[d] += delta[i * D + d];
             }
         }
+        if let Some(navier) = navier {
+            sim.ledger.viscous += navier.dissipation(velocity, dt);
+        }
+    }
+}
+
+/// Each particle's viscosity μ_p, Pa·s, at its state (the last step's velocity gradient,
+/// its temperature and cure): 0 for particles whose law has none, whatever the law gives
+/// (even not finite) otherwise; and per group the least finite one ≥ 0 (0 if none).
+pub(super) fn particle_viscosities<const D: usize>(
+    particles: &crate::particles::Particles<D>,
+    out: &mut Vec<f64>,
+    least_per_group: &mut Vec<f64>,
+) where
+    dyn Material: DimensionDispatch<D>,
+{
+    out.resize(particles.len(), 0.0);
+    least_per_group.clear();
+    for group in &particles.groups {
+        let range = group.range.clone();
+        let material = group.material.as_ref();
+        let reads: [&[f64]; MAX_SHARED_READS] = std::array::from_fn(|k| {
+            material
+                .shared_reads()
+                .get(k)
+                .and_then(|r| particles.shared.get(r.name))
+                .map_or(&[][..], |f| &f[range.clone()])
+        });
+        let velocity_gradient = if particles.velocity_gradient.is_empty() {
+            &[][..]
+        } else {
+            &particles.velocity_gradient[range.clone()]
+        };
+        let viscosity = &mut out[range];
+        material.viscosities(ViscosityBatch {
+            velocity_gradient,
+            shared: reads,
+            viscosity: &mut *viscosity,
+        });
+        let least = viscosity
+            .iter()
+            .copied()
+            .filter(|c| c.is_finite() && *c >= 0.0)
+            .fold(f64::INFINITY, f64::min);
+        least_per_group.push(if least.is_finite() { least } else { 0.0 });
     }
 }
 
@@ -606,7 +694,7 @@ mod tests {
     }
 
     /// P A P is symmetric and positive definite on the free subspace with a stick ghost,
-    /// a symmetry ghost, fixed components and a general normal.
+    /// a symmetry ghost, fixed components, a general normal and Navier drag.
     #[test]
     fn operator_is_symmetric_positive_definite() {
         let nodes = 12;
@@ -625,33 +713,35 @@ mod tests {
             ..Interpolation::default()
         };
         let mut mask = vec![1.0; nodes * 2];
-        // Ghosts 0 and 1 (no mass, no unknowns), node 2 stuck, node 3 held along y.
+        // Ghosts 0, 1 and 2 (a Navier wall's; no mass, no unknowns), node 3 held along y.
         mask[0..4].fill(0.0);
         mask[4..6].fill(0.0);
         mask[7] = 0.0;
         let mut mass_rate: Vec<f64> = numbers(3, nodes).iter().map(|m| 2.0 + m).collect();
         mass_rate[0] = 0.0;
         mass_rate[1] = 0.0;
+        mass_rate[2] = 0.0;
         let op = Operator::<2> {
             interp,
             coefficient: numbers(5, particles).iter().map(|c| 1.5 + c).collect(),
             mass_rate,
             mirrors: vec![
+                Mirror::of_wall(0, 5, 1, false),
+                Mirror::of_wall(1, 6, 0, true),
                 Mirror {
-                    ghost: 0,
-                    front: 5,
+                    ghost: 2,
+                    front: 7,
                     axis: 1,
-                    symmetry: false,
-                },
-                Mirror {
-                    ghost: 1,
-                    front: 6,
-                    axis: 0,
-                    symmetry: true,
+                    normal: 1.0,
+                    tangential: 0.4,
                 },
             ],
             mask,
             normals: vec![(8, Vector::<2>::new(0.6, 0.8))],
+            // A Navier surface's drag on a few nodes, one of them with a general normal.
+            drag: (0..nodes)
+                .map(|i| if i % 3 == 2 { 0.7 } else { 0.0 })
+                .collect(),
         };
         let mut scratch = Scratch::<2> {
             full: vec![0.0; nodes * 2],
