@@ -129,7 +129,14 @@ fn what_a_held_body_cannot_be_is_refused() {
     refused(&s, "bodies[1].shape", "a box, sphere or cylinder");
     let mut s = base.clone();
     s["bodies"][1]["held"]["condition"] = json!({"friction": {"coefficient": 0.3}});
-    refused(&s, "bodies[1].held.condition", "`stick` or `slip`");
+    refused(
+        &s,
+        "bodies[1].held.condition",
+        "`stick`, `slip` or `navier`",
+    );
+    let mut s = base.clone();
+    s["bodies"][1]["held"]["condition"] = json!({"navier": {"slip_length": -1e-3}});
+    refused(&s, "bodies[1].held.condition.navier.slip_length", "> 0");
     let mut s = base.clone();
     s["bodies"][2]["held"]["contact_angle"] = json!(180.0);
     refused(&s, "bodies[2].held.contact_angle", "");

@@ -41,8 +41,8 @@ pub struct Body {
 #[derive(Clone, Debug, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct HeldSurface {
-    /// Contact condition of the liquid on the body: `stick` (no slip, the default) or
-    /// `slip`.
+    /// Contact condition of the liquid on the body: `stick` (no slip, the default),
+    /// `slip` or `{"navier": {"slip_length": b}}`.
     #[serde(default = "stick")]
     pub condition: super::Contact,
     /// Static contact angle, degrees, of a liquid with surface tension on the body,
@@ -206,12 +206,16 @@ impl Body {
         self.shape.validate(v, &format!("{path}.shape"));
         if let Some(held) = &self.held {
             let p = format!("{path}.held");
-            if !matches!(held.condition, super::Contact::Stick | super::Contact::Slip) {
+            if !matches!(
+                held.condition,
+                super::Contact::Stick | super::Contact::Slip | super::Contact::Navier { .. }
+            ) {
                 v.err(
                     format!("{p}.condition"),
-                    "a held body meets the liquid with `stick` or `slip`",
+                    "a held body meets the liquid with `stick`, `slip` or `navier`",
                 );
             }
+            held.condition.validate(v, &format!("{p}.condition"));
             super::domain::validate_contact_angle(
                 v,
                 &format!("{p}.contact_angle"),
