@@ -274,7 +274,7 @@ pub struct Metrics {
     /// The method's energy error at the end: the change of the total (kinetic + strain +
     /// gravity + a liquid's surface) energy less what the `energy_ledger` explains (work
     /// done on the bodies, liquid through openings, damping, plastic, friction, cohesive
-    /// and viscous dissipation), relative to the largest mechanical (kinetic + strain +
+    /// and viscous dissipation; not the volume source's work), relative to the largest mechanical (kinetic + strain +
     /// |surface|) energy seen; negative: the method lost energy
     /// (numerical dissipation, impacts against fixed surfaces, wall friction).
     pub energy_drift: f64,

@@ -103,6 +103,7 @@ where
         s.push(&self.ledger.to_array());
         c.put("ledger.openings", vec![self.ledger.openings]);
         c.put("ledger.viscous", vec![self.ledger.viscous]);
+        c.put("ledger.volume_source", vec![self.ledger.volume_source]);
         c.put("simulation.surface_energy", vec![self.surface_energy]);
         let k = &self.kinematics;
         s.push(&[k.kinetic_energy]);
@@ -161,6 +162,8 @@ where
         self.ledger.openings = c.get("ledger.openings", 1).map_or(0.0, |v| v[0]);
         // Absent from checkpoints written before the viscous dissipation was booked.
         self.ledger.viscous = c.get("ledger.viscous", 1).map_or(0.0, |v| v[0]);
+        // Absent from checkpoints written before the volume source's work was booked.
+        self.ledger.volume_source = c.get("ledger.volume_source", 1).map_or(0.0, |v| v[0]);
         self.surface_energy = c.get("simulation.surface_energy", 1).map_or(0.0, |v| v[0]);
         self.restore_statistics(&mut s)?;
         self.stress_scratch.restore(c)?;

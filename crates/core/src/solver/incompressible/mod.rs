@@ -139,6 +139,9 @@ pub(super) struct Incompressible<const D: usize> {
     source_rhs: Vec<f64>,
     source_pressure: Vec<f64>,
     source_solved: bool,
+    /// Per node: its share of the volume this step's source lets the cells gain (or lose),
+    /// m³ (m² in 2D), for the source's work (volume_source.rs).
+    source_volume: Vec<f64>,
     /// The nodes a pressure inlet holds this step (pressure_inlet.rs), and per node whether
     /// it is one of them.
     held: Vec<usize>,
@@ -157,6 +160,7 @@ impl<const D: usize> Incompressible<D> {
             source_rhs: Vec::new(),
             source_pressure: Vec::new(),
             source_solved: false,
+            source_volume: Vec::new(),
             held: Vec::new(),
             is_held: Vec::new(),
             settings,
@@ -694,6 +698,9 @@ impl<const D: usize> Incompressible<D> {
                 ),
                 self.settings.max_iterations,
             );
+        }
+        if source {
+            sim.ledger.volume_source += self.volume_source_work();
         }
         for v in self.solve_vectors() {
             v.truncate(n);

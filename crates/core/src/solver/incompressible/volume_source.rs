@@ -34,18 +34,36 @@ impl<const D: usize> Incompressible<D> {
             self.source_pressure.resize(self.rhs.len(), 0.0);
         }
         let share = rate / (corners as f64 * dt * dt);
+        self.source_volume.resize(self.rhs.len(), 0.0);
+        self.source_volume.fill(0.0);
         for c in 0..self.cell_volume.len() {
             if let Some(volume) = self.volume_source(c, dx) {
                 let base = self.cell_node[c];
                 for a in 0..corners {
                     let node = base + self.corner_offset[a];
                     self.rhs[node] += volume * share;
+                    self.source_volume[node] += volume * rate / corners as f64;
                     if self.source_solved {
                         self.source_rhs[node] += volume * share;
                     }
                 }
             }
         }
+    }
+
+    /// The work the pressure does through this step's source: Σ_i p_i ΔV_i over the nodes,
+    /// ΔV_i their share of the volume the source lets the cells gain (or lose) in the step
+    /// and p_i the total pressure just solved for (with implicit viscosity the increment
+    /// plus the pressure kept from the last step), J (J/m in 2D). The kinetic energy
+    /// equation's ∫ p ∇·v dV, which a divergence-free velocity does not have.
+    pub(super) fn volume_source_work(&self) -> f64 {
+        let kept = |i: usize| self.viscosity.as_ref().map_or(0.0, |v| v.last_pressure(i));
+        self.source_volume
+            .iter()
+            .enumerate()
+            .filter(|(_, dv)| **dv != 0.0)
+            .map(|(i, dv)| (self.pressure[i] + kept(i)) * dv)
+            .sum()
     }
 
     /// The volume cell `c` is to give (or take, negative) in a velocity-CFL step: the share
