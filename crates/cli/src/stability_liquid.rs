@@ -1,7 +1,8 @@
 //! The stability suite's liquid-particle cases (`solver.mechanics.incompressible`): a
-//! collapsing column from water to a paste at one step (implicit viscosity), menisci at the
-//! extreme contact angles, a drop of a single particle with surface tension, and liquid
-//! let into a closed box past what it holds.
+//! collapsing column from water to a paste at one step (implicit viscosity), the column on
+//! Navier-slip walls at extreme slip lengths, menisci at the extreme contact angles, a drop
+//! of a single particle with surface tension, and liquid let into a closed box past what it
+//! holds.
 
 use crate::stability_case::{Case, Expected, Frames};
 use mpm_core::output::Metrics;
@@ -29,6 +30,18 @@ fn column(mu: f64) -> Value {
                     "shape": {"box": {"min": [0, 0], "max": [0.05, COLUMN]}}}],
         "output": {"frames": 4, "fields": ["x", "v"]}
     })
+}
+
+/// The water column of [`column`] on Navier-slip walls of slip length `b` (m), with implicit
+/// or explicit viscosity.
+fn navier_column(b: f64, implicit: bool) -> Value {
+    let mut scene = column(1e-3);
+    scene["domain"]["walls"] = json!([{"sides": ["x-", "x+", "y-"],
+                                       "condition": {"navier": {"slip_length": b}}}]);
+    if !implicit {
+        scene["solver"]["mechanics"] = json!({"incompressible": {}});
+    }
+    scene
 }
 
 /// A meniscus between walls 5 mm apart (10 cells) without gravity, contact angle `angle`
@@ -231,6 +244,27 @@ pub fn cases() -> Vec<Case> {
             name: "liquid-viscosity-1e3",
             what: "the same column at 1e3 Pa s and the same 1 ms step (1/70 of it would be the explicit viscous limit)",
             scene: column(1e3),
+            expected: Expected::Finished,
+            check: Some(column_check),
+        },
+        Case {
+            name: "liquid-navier-slip-1e-9",
+            what: "the 1e-3 Pa s column on Navier walls of slip length 1 nm (a wall drag 7.5e6 times a cell's viscous coupling), implicit viscosity at 1 ms",
+            scene: navier_column(1e-9, true),
+            expected: Expected::Finished,
+            check: Some(column_check),
+        },
+        Case {
+            name: "liquid-navier-slip-1e-9-explicit",
+            what: "the same with explicit viscosity (the drag by backward Euler on its own)",
+            scene: navier_column(1e-9, false),
+            expected: Expected::Finished,
+            check: Some(column_check),
+        },
+        Case {
+            name: "liquid-navier-slip-1e3",
+            what: "the same column on Navier walls of slip length 1 km (slip), implicit viscosity",
+            scene: navier_column(1e3, true),
             expected: Expected::Finished,
             check: Some(column_check),
         },
