@@ -31,7 +31,7 @@ use crate::solver::DimensionDispatch;
 #[derive(Clone, Copy, Debug)]
 struct DragNode<const D: usize> {
     node: u32,
-    /// Index of the node in `NavierDrag::sums`.
+    /// Index of the node in `DragNodes::sums`.
     slot: u32,
     /// A/b, m^(D−2): the area the node stands for over the slip length.
     area_over_length: f64,
@@ -44,11 +44,7 @@ struct DragNode<const D: usize> {
 /// The Navier surfaces' drag on the grid nodes, rebuilt every step (surfaces may move).
 #[derive(Default)]
 pub(super) struct NavierDrag<const D: usize> {
-    nodes: Vec<DragNode<D>>,
-    /// Per grid node: 1 + its slot in `sums`, or 0 for a node without drag.
-    slot: Vec<u32>,
-    /// Per node with drag: Σ_p w_ip m_p μ_p and Σ_p w_ip m_p over the liquid particles.
-    sums: Vec<[f64; 2]>,
+    found: DragNodes<D>,
     /// Each particle's viscosity (explicit viscosity; the implicit solve has its own).
     viscosity: Vec<f64>,
     least: Vec<f64>,
@@ -56,7 +52,17 @@ pub(super) struct NavierDrag<const D: usize> {
     interp: Interpolation<D>,
 }
 
-impl<const D: usize> NavierDrag<D> {
+/// The nodes with drag this step and what finding their viscosity needs.
+#[derive(Default)]
+struct DragNodes<const D: usize> {
+    nodes: Vec<DragNode<D>>,
+    /// Per grid node: 1 + its slot in `sums`, or 0 for a node without drag.
+    slot: Vec<u32>,
+    /// Per node with drag: Σ_p w_ip m_p μ_p and Σ_p w_ip m_p over the liquid particles.
+    sums: Vec<[f64; 2]>,
+}
+
+impl<const D: usize> DragNodes<D> {
     /// Finds the nodes with drag at `time` and their coefficients from the particles'
     /// stencils `interp` and viscosities `viscosity(p)` (Pa·s; 0 for solids).
     fn update<K: Kernel>(
@@ -132,22 +138,24 @@ impl<const D: usize> NavierDrag<D> {
             d.coefficient = mu * d.area_over_length;
         }
     }
+}
 
+impl<const D: usize> NavierDrag<D> {
     /// With implicit viscosity: finds the drag for the solve (`interp`, the particles'
-    /// stencils, and `coefficient`, their 2·μ_p·V_p) and adds each node's C_i to `drag`
-    /// (one number per node, zeroed here).
+    /// stencils, and `coefficient`, their 2·μ_p·V_p) and lists each node with drag once in
+    /// `drag`, with its C_i (the surfaces' on it summed).
     pub(super) fn for_implicit_solve<K: Kernel>(
         &mut self,
         sim: &Simulation<D, K>,
         time: f64,
         interp: &Interpolation<D>,
         coefficient: &[f64],
-        drag: &mut Vec<f64>,
+        drag: &mut Vec<(u32, f64)>,
     ) where
         dyn Material: DimensionDispatch<D>,
     {
         let particles = &sim.particles;
-        self.update(sim, time, interp, |p| {
+        self.found.update(sim, time, interp, |p| {
             let volume =
                 particles.volume0[p] * crate::math::determinant(&particles.deformation_gradient[p]);
             if volume > 0.0 {
@@ -156,17 +164,20 @@ impl<const D: usize> NavierDrag<D> {
                 0.0
             }
         });
-        drag.resize(sim.grid.len(), 0.0);
-        drag.fill(0.0);
-        for d in &self.nodes {
-            drag[d.node as usize] += d.coefficient;
+        drag.clear();
+        // A node's surfaces are found one after another (a corner has two).
+        for d in &self.found.nodes {
+            match drag.last_mut() {
+                Some((node, c)) if *node == d.node => *c += d.coefficient,
+                _ => drag.push((d.node, d.coefficient)),
+            }
         }
     }
 
     /// The surfaces' share of the implicit solve's right-hand side: adds C_i·V to each
     /// node's components in `rhs` (D numbers per node).
     pub(super) fn add_surface_velocity(&self, rhs: &mut [f64]) {
-        for d in &self.nodes {
+        for d in &self.found.nodes {
             let k = d.node as usize * D;
             for c in 0..D {
                 rhs[k + c] += d.coefficient * d.surface_velocity[c];
@@ -186,16 +197,12 @@ impl<const D: usize> NavierDrag<D> {
     {
         build_interpolation::<D, K>(&sim.grid, &sim.particles, &mut self.interp);
         particle_viscosities(&sim.particles, &mut self.viscosity, &mut self.least);
-        let (interp, viscosity) = (
-            std::mem::take(&mut self.interp),
-            std::mem::take(&mut self.viscosity),
-        );
-        self.update(sim, sim.time + dt, &interp, |p| {
+        let viscosity = &self.viscosity;
+        self.found.update(sim, sim.time + dt, &self.interp, |p| {
             let mu = viscosity[p];
             if mu.is_finite() { mu } else { 0.0 }
         });
-        (self.interp, self.viscosity) = (interp, viscosity);
-        for d in &self.nodes {
+        for d in &self.found.nodes {
             let i = d.node as usize;
             let m = sim.grid.mass[i];
             let relative = velocity[i] - d.surface_velocity;
@@ -208,7 +215,8 @@ impl<const D: usize> NavierDrag<D> {
     /// The work the drag took over a step `dt` at the nodal `velocity` it left:
     /// Σ C_i·|(v_i − V)_t|²·dt, J (J/m in 2D).
     pub(super) fn dissipation(&self, velocity: &[Vector<D>], dt: f64) -> f64 {
-        self.nodes
+        self.found
+            .nodes
             .iter()
             .map(|d| {
                 let relative = velocity[d.node as usize] - d.surface_velocity;

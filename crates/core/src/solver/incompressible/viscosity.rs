@@ -118,9 +118,9 @@ struct Operator<const D: usize> {
     mask: Vec<f64>,
     /// Components along general (not axis-aligned) normals a node may not change.
     normals: Vec<(u32, Vector<D>)>,
-    /// Per node: the drag C_i of Navier-slip surfaces on it (navier_slip.rs; empty
+    /// The nodes Navier-slip surfaces drag, each once with its C_i (navier_slip.rs; empty
     /// without them).
-    drag: Vec<f64>,
+    drag: Vec<(u32, f64)>,
 }
 
 impl<const D: usize> Operator<D> {
@@ -225,11 +225,10 @@ impl<const D: usize> Operator<D> {
         }
         // The Navier surfaces' drag, C_i on the (projected) operand: its tangential part.
         let operand: &[f64] = if operand_projected { full } else { x };
-        for (i, c) in self.drag.iter().enumerate() {
-            if *c != 0.0 {
-                for d in 0..D {
-                    y[i * D + d] += c * operand[i * D + d];
-                }
+        for &(i, c) in &self.drag {
+            let k = i as usize * D;
+            for d in 0..D {
+                y[k + d] += c * operand[k + d];
             }
         }
         self.project(y);
@@ -254,11 +253,16 @@ impl<const D: usize> Operator<D> {
                 }
             }
         }
+        for &(i, c) in &self.drag {
+            let k = i as usize * D;
+            for d in 0..D {
+                out[k + d] += c;
+            }
+        }
         for (i, m) in self.mass_rate.iter().enumerate() {
-            let drag = self.drag.get(i).copied().unwrap_or(0.0);
             for d in 0..D {
                 let k = i * D + d;
-                let diagonal = out[k] + m + drag;
+                let diagonal = out[k] + m;
                 out[k] = if self.mask[k] > 0.0 && diagonal > 0.0 {
                     1.0 / diagonal
                 } else {
@@ -587,7 +591,7 @@ impl<const D: usize> ImplicitViscosity<D> {
         delta.fill(0.0);
         operator.inverse_diagonal(inverse_diagonal);
         let result = if operator.coefficient.iter().any(|&c| c > 0.0)
-            || operator.drag.iter().any(|&c| c > 0.0)
+            || operator.drag.iter().any(|&(_, c)| c > 0.0)
         {
             let op = &*operator;
             let inverse = &*inverse_diagonal;
@@ -739,8 +743,9 @@ mod tests {
             mask,
             normals: vec![(8, Vector::<2>::new(0.6, 0.8))],
             // A Navier surface's drag on a few nodes, one of them with a general normal.
-            drag: (0..nodes)
-                .map(|i| if i % 3 == 2 { 0.7 } else { 0.0 })
+            drag: (0..nodes as u32)
+                .filter(|i| i % 3 == 2)
+                .map(|i| (i, 0.7))
                 .collect(),
         };
         let mut scratch = Scratch::<2> {
