@@ -37,6 +37,8 @@ mod liquid;
 mod liquid_references;
 mod meniscus_reference;
 mod parameters;
+mod particle_cells;
+mod particle_fill;
 mod particle_voids;
 mod pressure_filling;
 mod underfill;

@@ -1,13 +1,17 @@
 //! Voids among liquid particles (`physics.liquid_voids`): each step the grid cells inside
-//! the domain that are neither solid (behind a wall, inside an obstacle) nor hold a liquid
-//! particle are air; air regions that touch no vent face are voids, reported in the same
-//! `underfill_voids` table as the gap-averaged mode. The incompressible projection takes
-//! air for free surface, so a void here does not resist: it records where and when the
-//! liquid closed around air, and when the air left (its cells filled or reached a vent).
+//! the domain that are neither closed (behind a wall, inside an obstacle or a held body)
+//! nor hold a liquid particle are air; air regions
+//! that touch no vent face are voids, reported in the same `underfill_voids` table as the
+//! gap-averaged mode. The incompressible projection takes air for free surface, so a void
+//! here does not resist: it records where and when the liquid closed around air, and when
+//! the air left (its cells filled or reached a vent). With a `fill_region` the region's
+//! fill and fill time are recorded too (`crate::particle_fill`).
 
-use crate::voids::{AirCells, VoidTracker};
+use crate::particle_cells::{GridCells, side_of};
+use crate::particle_fill::FillTimer;
+use crate::voids::VoidTracker;
 use mpm_core::physics::{PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
-use mpm_core::scene::{Issue, Mechanics, Scene, Side};
+use mpm_core::scene::{Issue, Mechanics, RegionBox, Scene, Side};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::sync::Mutex;
@@ -27,6 +31,11 @@ pub struct LiquidVoidsParameters {
     /// cell or two without a particle inside moving liquid is not air.
     #[serde(default = "default_min_void_cells")]
     pub min_void_cells: f64,
+    /// A box (min and max corners, m) whose fill is timed, say the gap under a die: its
+    /// filled fraction, its fill history (`underfill_fill`) and its fill time (the first
+    /// time none of its air has a way out to a vent). Default: none.
+    #[serde(default)]
+    pub fill_region: Option<RegionBox>,
 }
 
 fn default_min_void_cells() -> f64 {
@@ -75,6 +84,9 @@ impl LiquidVoidsParameters {
                 ),
             ));
         }
+        if let Some(region) = &self.fill_region {
+            check_region(&mut issues, &format!("{path}.fill_region"), region, scene);
+        }
         issues
     }
 
@@ -92,12 +104,49 @@ impl LiquidVoidsParameters {
     }
 }
 
+/// Problems with the fill region: each corner a point of the scene's dimension, min below
+/// max, and the box overlapping the domain.
+fn check_region(issues: &mut Vec<Issue>, path: &str, region: &RegionBox, scene: &Scene) {
+    let dim = scene.dimension as usize;
+    let mut shaped = true;
+    for (name, corner) in [("min", &region.min), ("max", &region.max)] {
+        if corner.len() != dim || corner.iter().any(|v| !v.is_finite()) {
+            issues.push(Issue::new(
+                format!("{path}.{name}"),
+                format!("must be {dim} finite coordinates (got {corner:?})"),
+            ));
+            shaped = false;
+        }
+    }
+    if !shaped {
+        return;
+    }
+    if (0..dim).any(|a| region.min[a] >= region.max[a]) {
+        issues.push(Issue::new(
+            format!("{path}.max"),
+            "must lie above min along every axis",
+        ));
+    } else if (0..dim).any(|a| {
+        region.max[a]
+            <= scene
+                .domain
+                .min
+                .get(a)
+                .copied()
+                .unwrap_or(f64::NEG_INFINITY)
+            || region.min[a] >= scene.domain.max.get(a).copied().unwrap_or(f64::INFINITY)
+    }) {
+        issues.push(Issue::new(path.to_string(), "lies outside the domain"));
+    }
+}
+
 /// The operator: labels the air each step and keeps the void table.
 pub struct LiquidVoids {
     liquids: Vec<String>,
     vents: Vec<Side>,
     min_void_cells: f64,
     domain: ([f64; 3], [f64; 3]),
+    fill_region: Option<([f64; 3], [f64; 3])>,
     workspace: Mutex<Option<Workspace>>,
 }
 
@@ -105,6 +154,7 @@ pub struct LiquidVoids {
 struct Workspace {
     cells: GridCells,
     tracker: VoidTracker,
+    fill: Option<FillTimer>,
 }
 
 impl LiquidVoids {
@@ -136,6 +186,10 @@ impl LiquidVoids {
             vents,
             min_void_cells: params.min_void_cells,
             domain: (pick(&scene.domain.min), pick(&scene.domain.max)),
+            fill_region: params
+                .fill_region
+                .as_ref()
+                .map(|r| (pick(&r.min), pick(&r.max))),
             workspace: Mutex::new(None),
         }
     }
@@ -145,16 +199,9 @@ impl LiquidVoids {
     fn cells<const D: usize>(&self, ctx: &PhysicsContext<'_, D>) -> GridCells {
         let grid = ctx.grid;
         let n = [0, 1, 2].map(|a| if a < D { grid.cells[a] } else { 1 });
-        let count = n.iter().product();
-        let mut cells = GridCells {
-            n,
-            dx: grid.dx,
-            origin: [0, 1, 2].map(|a| if a < D { grid.origin[a] } else { 0.0 }),
-            dimension: D,
-            closed: vec![false; count],
-            vented: vec![false; count],
-            liquid: vec![false; count],
-        };
+        let origin = [0, 1, 2].map(|a| if a < D { grid.origin[a] } else { 0.0 });
+        let mut cells = GridCells::new(n, grid.dx, origin, D);
+        let count = cells.closed.len();
         for c in 0..count {
             let ijk = cells.coords(c);
             let centre = cells.centre(c);
@@ -188,118 +235,37 @@ impl LiquidVoids {
         let ws = guard.get_or_insert_with(|| {
             let cells = self.cells(&ctx);
             let tracker = VoidTracker::new(cells.closed.len());
-            Workspace { cells, tracker }
+            let fill = self
+                .fill_region
+                .map(|(min, max)| FillTimer::new(&cells, min, max));
+            Workspace {
+                cells,
+                tracker,
+                fill,
+            }
         });
-        ws.cells.liquid.fill(false);
+        let cells = &mut ws.cells;
+        cells.liquid.fill(false);
         let pv = &ctx.particles;
         for g in pv.groups.iter().filter(|g| self.liquids.contains(&g.name)) {
             for x in &pv.position[g.range.clone()] {
-                if let Some(c) = ws.cells.cell_of(x.as_slice()) {
-                    ws.cells.liquid[c] = true;
+                if let Some(c) = cells.cell_of(x.as_slice()) {
+                    cells.liquid[c] = true;
                 }
             }
         }
-        let cell_measure = ctx.grid.dx.powi(D as i32);
+        let cell_measure = cells.measure();
         let summary = ws
             .tracker
             .label(&ws.cells, ctx.time, self.min_void_cells * cell_measure);
         let report = &mut *ctx.report;
+        if let Some(fill) = &mut ws.fill {
+            fill.record(&ws.cells, &ws.tracker, &summary, ctx.time, report);
+        }
         report.record_max("underfill.voids", summary.voids as f64);
         report.record_max("underfill.trapped_air_volume", summary.trapped_volume);
         if summary.changed || summary.voids > 0 {
             ws.tracker.write_table(report, D == 3);
-        }
-    }
-}
-
-fn side_of(axis: usize, upper: bool) -> Side {
-    match (axis, upper) {
-        (0, false) => Side::XMin,
-        (0, true) => Side::XMax,
-        (1, false) => Side::YMin,
-        (1, true) => Side::YMax,
-        (_, false) => Side::ZMin,
-        (_, true) => Side::ZMax,
-    }
-}
-
-/// The grid's cells as air, liquid or closed (solid or outside the domain).
-struct GridCells {
-    n: [usize; 3],
-    dx: f64,
-    origin: [f64; 3],
-    dimension: usize,
-    closed: Vec<bool>,
-    vented: Vec<bool>,
-    liquid: Vec<bool>,
-}
-
-impl GridCells {
-    fn coords(&self, c: usize) -> [usize; 3] {
-        [
-            c % self.n[0],
-            (c / self.n[0]) % self.n[1],
-            c / (self.n[0] * self.n[1]),
-        ]
-    }
-
-    fn index(&self, ijk: [usize; 3]) -> usize {
-        ijk[0] + self.n[0] * (ijk[1] + self.n[1] * ijk[2])
-    }
-
-    fn centre(&self, c: usize) -> [f64; 3] {
-        let ijk = self.coords(c);
-        [0, 1, 2].map(|a| {
-            if a < self.dimension {
-                self.origin[a] + (ijk[a] as f64 + 0.5) * self.dx
-            } else {
-                0.0
-            }
-        })
-    }
-
-    /// The cell holding position `x`, if on the grid.
-    fn cell_of(&self, x: &[f64]) -> Option<usize> {
-        let mut ijk = [0usize; 3];
-        for (a, &xa) in x.iter().enumerate() {
-            let s = ((xa - self.origin[a]) / self.dx).floor();
-            if !(s >= 0.0 && (s as usize) < self.n[a]) {
-                return None;
-            }
-            ijk[a] = s as usize;
-        }
-        Some(self.index(ijk))
-    }
-}
-
-impl AirCells for GridCells {
-    fn len(&self) -> usize {
-        self.closed.len()
-    }
-
-    fn is_air(&self, c: usize) -> bool {
-        !self.closed[c] && !self.liquid[c]
-    }
-
-    fn vented(&self, c: usize) -> bool {
-        self.vented[c]
-    }
-
-    fn air(&self, c: usize) -> (f64, f64, [f64; 3]) {
-        let measure = self.dx.powi(self.dimension as i32);
-        (measure, measure, self.centre(c))
-    }
-
-    fn for_each_neighbour(&self, c: usize, mut f: impl FnMut(usize)) {
-        let ijk = self.coords(c);
-        for a in 0..self.dimension {
-            let stride = [1, self.n[0], self.n[0] * self.n[1]][a];
-            if ijk[a] > 0 {
-                f(c - stride);
-            }
-            if ijk[a] + 1 < self.n[a] {
-                f(c + stride);
-            }
         }
     }
 }

@@ -116,6 +116,8 @@ pub(crate) struct VoidTracker {
     /// Void id of each cell at the last step.
     void_of_cell: Vec<u32>,
     region: Vec<u32>,
+    /// Whether each air region of the last labelling (by label) reaches a vent.
+    region_vented: Vec<bool>,
     queue: Vec<u32>,
     /// Every void so far.
     pub records: Vec<VoidRecord>,
@@ -138,6 +140,7 @@ impl VoidTracker {
         Self {
             void_of_cell: vec![NONE; n],
             region: vec![NONE; n],
+            region_vented: Vec::new(),
             queue: Vec::with_capacity(n),
             records: Vec::new(),
             claimed: Vec::new(),
@@ -171,6 +174,13 @@ impl VoidTracker {
     /// Whether cell `c` held air at the last labelling.
     pub fn was_air(&self, c: usize) -> bool {
         self.region[c] != NONE
+    }
+
+    /// Whether cell `c` held air with a way out to a vent at the last labelling (air
+    /// enclosed below the smallest reported void is not vented).
+    pub fn vented_air(&self, c: usize) -> bool {
+        let r = self.region[c];
+        r != NONE && self.region_vented[r as usize]
     }
 
     /// Labels the gap-averaged lattice's air regions, updates the void records at `time`
@@ -219,6 +229,7 @@ impl VoidTracker {
         let mut summary = AirSummary::default();
         self.claimed.clear();
         self.claimed.resize(self.records.len(), false);
+        self.region_vented.clear();
         let mut label = 0u32;
         for start in 0..n {
             if self.region[start] != NONE || !cells.is_air(start) {
@@ -255,6 +266,7 @@ impl VoidTracker {
                     }
                 });
             }
+            self.region_vented.push(region.vented);
             if region.vented || (region.previous == NONE && region.area < smallest) {
                 // Vented, or enclosed below the resolution (under two cells of air by
                 // default): not reported.
