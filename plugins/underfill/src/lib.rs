@@ -52,6 +52,7 @@ pub use parameters::{
     Air, BumpArray, BumpPattern, FlowMode, Fluid, FluidSection, InitialFill, Reservoir,
     UnderfillParameters, VentRegion,
 };
+pub use particle_fill::FillRegion;
 pub use particle_voids::{LiquidVoids, LiquidVoidsParameters};
 pub use pressure_filling::{pressure_fill_time, pressure_front};
 pub use underfill::{FILL_COLUMNS, FILL_TABLE, Underfill, VOIDS_TABLE};

@@ -8,10 +8,10 @@
 //! fill and fill time are recorded too (`crate::particle_fill`).
 
 use crate::particle_cells::{GridCells, side_of};
-use crate::particle_fill::FillTimer;
+use crate::particle_fill::{FillRegion, FillTimer};
 use crate::voids::VoidTracker;
 use mpm_core::physics::{PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
-use mpm_core::scene::{Issue, Mechanics, RegionBox, Scene, Side};
+use mpm_core::scene::{Issue, Mechanics, Scene, Side};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::sync::Mutex;
@@ -31,11 +31,10 @@ pub struct LiquidVoidsParameters {
     /// cell or two without a particle inside moving liquid is not air.
     #[serde(default = "default_min_void_cells")]
     pub min_void_cells: f64,
-    /// A box (min and max corners, m) whose fill is timed, say the gap under a die: its
-    /// filled fraction, its fill history (`underfill_fill`) and its fill time (the first
-    /// time none of its air has a way out to a vent). Default: none.
+    /// A box whose fill is timed, say the gap under a die: its filled fraction, its fill
+    /// history (`underfill_fill`) and its fill time. Default: none.
     #[serde(default)]
-    pub fill_region: Option<RegionBox>,
+    pub fill_region: Option<FillRegion>,
 }
 
 fn default_min_void_cells() -> f64 {
@@ -85,7 +84,7 @@ impl LiquidVoidsParameters {
             ));
         }
         if let Some(region) = &self.fill_region {
-            check_region(&mut issues, &format!("{path}.fill_region"), region, scene);
+            issues.extend(region.check(&format!("{path}.fill_region"), scene));
         }
         issues
     }
@@ -104,49 +103,13 @@ impl LiquidVoidsParameters {
     }
 }
 
-/// Problems with the fill region: each corner a point of the scene's dimension, min below
-/// max, and the box overlapping the domain.
-fn check_region(issues: &mut Vec<Issue>, path: &str, region: &RegionBox, scene: &Scene) {
-    let dim = scene.dimension as usize;
-    let mut shaped = true;
-    for (name, corner) in [("min", &region.min), ("max", &region.max)] {
-        if corner.len() != dim || corner.iter().any(|v| !v.is_finite()) {
-            issues.push(Issue::new(
-                format!("{path}.{name}"),
-                format!("must be {dim} finite coordinates (got {corner:?})"),
-            ));
-            shaped = false;
-        }
-    }
-    if !shaped {
-        return;
-    }
-    if (0..dim).any(|a| region.min[a] >= region.max[a]) {
-        issues.push(Issue::new(
-            format!("{path}.max"),
-            "must lie above min along every axis",
-        ));
-    } else if (0..dim).any(|a| {
-        region.max[a]
-            <= scene
-                .domain
-                .min
-                .get(a)
-                .copied()
-                .unwrap_or(f64::NEG_INFINITY)
-            || region.min[a] >= scene.domain.max.get(a).copied().unwrap_or(f64::INFINITY)
-    }) {
-        issues.push(Issue::new(path.to_string(), "lies outside the domain"));
-    }
-}
-
 /// The operator: labels the air each step and keeps the void table.
 pub struct LiquidVoids {
     liquids: Vec<String>,
     vents: Vec<Side>,
     min_void_cells: f64,
     domain: ([f64; 3], [f64; 3]),
-    fill_region: Option<([f64; 3], [f64; 3])>,
+    fill_region: Option<FillRegion>,
     workspace: Mutex<Option<Workspace>>,
 }
 
@@ -186,10 +149,7 @@ impl LiquidVoids {
             vents,
             min_void_cells: params.min_void_cells,
             domain: (pick(&scene.domain.min), pick(&scene.domain.max)),
-            fill_region: params
-                .fill_region
-                .as_ref()
-                .map(|r| (pick(&r.min), pick(&r.max))),
+            fill_region: params.fill_region.clone(),
             workspace: Mutex::new(None),
         }
     }
@@ -237,7 +197,8 @@ impl LiquidVoids {
             let tracker = VoidTracker::new(cells.closed.len());
             let fill = self
                 .fill_region
-                .map(|(min, max)| FillTimer::new(&cells, min, max));
+                .as_ref()
+                .map(|region| FillTimer::new(&cells, region));
             Workspace {
                 cells,
                 tracker,

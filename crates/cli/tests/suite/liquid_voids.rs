@@ -184,6 +184,12 @@ fn the_liquid_voids_section_is_checked() {
             &[r#"physics.liquid_voids.fill_region={"min":[1,1],"max":[2,2]}"#][..],
             "physics.liquid_voids.fill_region",
         ),
+        (
+            &[
+                r#"physics.liquid_voids.fill_region={"min":[0,0],"max":[0.01,0.01],"vented_air_tolerance":1}"#,
+            ][..],
+            "physics.liquid_voids.fill_region.vented_air_tolerance",
+        ),
     ] {
         let issues = invalid_example("liquid-void-pit.json", overrides);
         assert!(
