@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{PIT_3D, invalid_example, load_example, run};
+use common::{PIT_3D, invalid_example, load_example, run, run_to_store};
 
 /// The row of void `id` in the `underfill_voids` table, by column name.
 fn void_row(m: &mpm_core::output::Metrics, id: usize) -> impl Fn(&str) -> f64 + '_ {
@@ -151,6 +151,45 @@ fn the_pit_as_a_fill_region_is_filled_when_its_air_is_cut_off() {
     assert!(at_fill[1] < 0.05, "filled {} when cut off", at_fill[1]);
     assert_eq!(at_fill[2], 0.0, "vented air left in the pit");
     assert!(history.rows.windows(2).all(|w| w[0][0] < w[1][0]));
+}
+
+#[test]
+fn a_stage_that_ends_when_filled_hands_over_at_the_fill_time() {
+    // `solver.end_when: "underfill.fill_time"` on the falling slab's first stage: the stage
+    // ends at the end of the step at which the pit's air was cut off (its fill time), with
+    // a last frame there (not at its end time, 0.08 s), and the second stage takes over from
+    // that time to its own end.
+    let fill = r#"physics.liquid_voids.fill_region={"min":[0.008,0],"max":[0.012,0.006]}"#;
+    let stages = concat!(
+        r#"stages=[{"name":"fill","changes":{"solver":{"end_when":"underfill.fill_time"}}},"#,
+        r#"{"name":"after","changes":{"solver":{"end_time":0.09},"physics":{"liquid_voids":null}}}]"#
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("pit.zarr");
+    let m = run_to_store(
+        &load_example("liquid-void-pit.json", &[fill, stages]),
+        &store,
+    );
+    let [first, second] = &m.stages[..] else {
+        panic!("{:?}", m.stages)
+    };
+    let fill_time = first.physics["underfill.fill_time"];
+    assert!(
+        fill_time > 0.02 && fill_time < 0.04,
+        "filled at {fill_time}"
+    );
+    assert_eq!(first.end_time, fill_time);
+    assert_eq!(second.start_time, fill_time);
+    assert!(
+        (second.end_time - 0.09).abs() < 1e-12,
+        "{}",
+        second.end_time
+    );
+    let times = mpm_io::ResultStore::open_stage(&store, Some("fill"))
+        .unwrap()
+        .times()
+        .unwrap();
+    assert_eq!(times.last().copied(), Some(fill_time), "{times:?}");
 }
 
 #[test]

@@ -60,6 +60,12 @@ pub enum Scheme {
 pub struct Solver {
     /// Simulated end time, seconds.
     pub end_time: f64,
+    /// End the run (in a staged scene, the stage) early, at the end of the first step
+    /// after which its physics report holds this figure: `underfill.fill_time` ends a fill
+    /// once its `fill_region` is filled, so the cure starts then. `end_time` stays the
+    /// limit when the figure never comes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_when: Option<String>,
     /// Shape functions.
     #[serde(default = "default_kernel")]
     pub kernel: KernelName,
@@ -623,6 +629,16 @@ impl Solver {
             );
         }
         v.positive("solver.max_cfl", self.max_cfl);
+        if self
+            .end_when
+            .as_ref()
+            .is_some_and(|name| name.trim().is_empty())
+        {
+            v.err(
+                "solver.end_when",
+                "names a figure of the physics report, say \"underfill.fill_time\"",
+            );
+        }
         if let Some(g) = &self.gravity {
             v.vector("solver.gravity", g);
         }

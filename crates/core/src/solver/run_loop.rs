@@ -335,6 +335,13 @@ where
         let mut outcome = Outcome::Finished;
         let mut diagnostic = None;
         let eps = 1e-9 * frame_dt;
+        // `solver.end_when`: the figure that ends the run once the physics first report it
+        // in this run (a figure an earlier stage left in the report does not count).
+        let end_when = self
+            .settings
+            .end_when
+            .clone()
+            .filter(|name| !self.report.maxima.iter().any(|(n, _)| n == name));
         while self.time < end_time - eps {
             let stable = self.stable_dt();
             dt = match self.settings.fixed_dt {
@@ -410,8 +417,11 @@ where
                 diagnostic = Some(d);
                 break;
             }
-            if self.time >= next_frame_time - eps {
-                let last = self.time >= end_time - eps;
+            let reached = end_when
+                .as_ref()
+                .is_some_and(|name| self.report.maxima.iter().any(|(n, _)| n == name));
+            if self.time >= next_frame_time - eps || reached {
+                let last = self.time >= end_time - eps || reached;
                 let now = self.write_frame(sink, run.frame, dt)?;
                 self.observe_reference(last);
                 run.conservation.observe(now);
@@ -437,6 +447,9 @@ where
             };
             if observer.progress(&progress) == Control::Cancel {
                 outcome = Outcome::Cancelled;
+                break;
+            }
+            if reached {
                 break;
             }
         }

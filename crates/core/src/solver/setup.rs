@@ -216,6 +216,7 @@ where
             fixed_dt: s.solver.dt,
             max_cfl: s.solver.max_cfl,
             end_time: s.solver.end_time,
+            end_when: s.solver.end_when.clone(),
             gravity: s
                 .solver
                 .gravity

@@ -48,6 +48,7 @@ pub(super) struct Settings<const D: usize> {
     pub(super) fixed_dt: Option<f64>,
     pub(super) max_cfl: f64,
     pub(super) end_time: f64,
+    pub(super) end_when: Option<String>,
     pub(super) gravity: Vector<D>,
     pub(super) damping: f64,
     pub(super) sort_interval: u32,
