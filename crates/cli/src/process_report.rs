@@ -173,7 +173,13 @@ fn fill_line(stage: &StageSummary) -> Option<String> {
         parts.push(format!("filled {:.2}%", 100.0 * f));
     }
     if let Some(v) = p.get("underfill.voids") {
-        parts.push(format!("{v} void(s)"));
+        parts.push(format!("{v} void(s) at most"));
+    }
+    if let Some(v) = p.get("underfill.voids_left") {
+        let volume = p.get("underfill.trapped_air_left").copied().unwrap_or(0.0);
+        parts.push(format!(
+            "{v} left at its end holding {volume:.4e} m³ of air"
+        ));
     }
     if let Some(a) = p.get("underfill.trapped_air_area") {
         parts.push(format!("trapped air {a:.4e} m²"));
@@ -245,6 +251,34 @@ mod tests {
             },
         );
         s
+    }
+
+    #[test]
+    fn a_fill_stage_reports_its_fill_time_and_the_voids_it_left() {
+        let mut fill = StageSummary {
+            name: "fill".into(),
+            ..StageSummary::default()
+        };
+        for (name, value) in [
+            ("underfill.fill_time", 2.5e-3),
+            ("underfill.fill_fraction", 0.9356),
+            ("underfill.voids", 12.0),
+            ("underfill.voids_left", 7.0),
+            ("underfill.trapped_air_left", 3e-14),
+        ] {
+            fill.physics.insert(name.into(), value);
+        }
+        let m = Metrics {
+            stages: vec![fill],
+            ..Metrics::default()
+        };
+        assert_eq!(
+            process_report(&m),
+            [
+                "fill: fill time 2.500000e-3 s, filled 93.56%, 12 void(s) at most, 7 left at its end \
+              holding 3.0000e-14 m³ of air"
+            ]
+        );
     }
 
     #[test]

@@ -252,7 +252,8 @@ pub struct Table {
 pub struct PhysicsReport {
     /// Set to stop the run with a diagnostic.
     pub fault: Option<PhysicsFault>,
-    /// Largest value of each named figure over the run (`thermal.solver_iterations`).
+    /// Largest value of each named figure over the run (`thermal.solver_iterations`), or
+    /// its latest for a figure recorded with [`PhysicsReport::record_last`].
     pub maxima: Vec<(String, f64)>,
     /// Named tables operators keep over the run (`underfill.voids`), in creation order.
     pub tables: Vec<(String, Table)>,
@@ -263,6 +264,14 @@ impl PhysicsReport {
     pub fn record_max(&mut self, name: &str, value: f64) {
         match self.maxima.iter_mut().find(|(n, _)| n == name) {
             Some((_, v)) => *v = v.max(value),
+            None => self.maxima.push((name.to_string(), value)),
+        }
+    }
+
+    /// Records a figure whose latest value the metrics keep (the voids still open now).
+    pub fn record_last(&mut self, name: &str, value: f64) {
+        match self.maxima.iter_mut().find(|(n, _)| n == name) {
+            Some((_, v)) => *v = value,
             None => self.maxima.push((name.to_string(), value)),
         }
     }

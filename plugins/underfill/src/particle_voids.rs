@@ -225,6 +225,8 @@ impl LiquidVoids {
         }
         report.record_max("underfill.voids", summary.voids as f64);
         report.record_max("underfill.trapped_air_volume", summary.trapped_volume);
+        report.record_last("underfill.voids_left", summary.voids as f64);
+        report.record_last("underfill.trapped_air_left", summary.trapped_volume);
         if summary.changed || summary.voids > 0 {
             ws.tracker.write_table(report, D == 3);
         }

@@ -317,6 +317,8 @@ impl Underfill {
         report.record_max("underfill.fill_fraction", fill);
         report.record_max("underfill.voids", air.voids as f64);
         report.record_max("underfill.trapped_air_area", air.trapped_area);
+        report.record_last("underfill.voids_left", air.voids as f64);
+        report.record_last("underfill.trapped_air_left", air.trapped_volume);
         if open > 0.0 {
             report.record_max(
                 "underfill.lost_volume_fraction",
