@@ -490,7 +490,7 @@ pub fn run_cli(cli: Cli, registry: Registry) -> anyhow::Result<ExitStatus> {
             })?;
             let voids = r
                 .voids
-                .map(|n| format!(", {n} voids marked"))
+                .map(|n| format!(", {n} void{} marked", if n == 1 { "" } else { "s" }))
                 .unwrap_or_default();
             let levels = r
                 .levels

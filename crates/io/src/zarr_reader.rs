@@ -18,6 +18,8 @@ pub struct ResultStore {
     attributes: serde_json::Map<String, serde_json::Value>,
     /// Group of the stage read (`/stages/<i>-<name>`), or empty for the root.
     prefix: String,
+    /// The metrics of the stage read (its group's `metrics` attribute), if one was chosen.
+    stage_metrics: Option<serde_json::Value>,
 }
 
 fn zerr(path: &Path, e: impl std::fmt::Display) -> IoError {
@@ -51,6 +53,7 @@ impl ResultStore {
             store,
             attributes,
             prefix: String::new(),
+            stage_metrics: None,
         })
     }
 
@@ -87,7 +90,18 @@ impl ResultStore {
                 },
             })?;
         self.prefix = format!("/stages/{found}");
+        let group =
+            Group::open(self.store.clone(), &self.prefix).map_err(|e| zerr(&self.path, e))?;
+        self.stage_metrics = group.attributes().get("metrics").cloned();
         Ok(self)
+    }
+
+    /// The metrics of what is read: the chosen stage's (its figures and tables), else the
+    /// run's.
+    pub fn metrics(&self) -> Option<&serde_json::Value> {
+        self.stage_metrics
+            .as_ref()
+            .or_else(|| self.attributes.get("metrics"))
     }
 
     /// Opens a store and, for a staged run's store, the stage `name` (default: the last).

@@ -156,7 +156,7 @@ pub(crate) fn render(args: &RenderArgs) -> anyhow::Result<Rendered> {
     let voids = match &args.voids {
         None => None,
         Some(table) => match parse_voids(
-            store.attributes().get("metrics"),
+            store.metrics(),
             table,
             [view.axis_name(0), view.axis_name(1)],
             dim,

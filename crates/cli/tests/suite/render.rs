@@ -350,3 +350,39 @@ fn render_outlines_the_refined_levels_of_a_refined_run() {
     let apart = groups[1].0 as f64 - groups[0].0 as f64;
     assert!((apart - 500.0).abs() < 30.0, "{groups:?}");
 }
+
+#[test]
+fn render_marks_the_voids_of_the_stage_it_draws() {
+    // A staged run keeps each stage's tables in its stage's metrics: the pit's fill stage
+    // (ended at its fill time by `solver.end_when`) holds the void it closed, which
+    // `--stage fill --voids underfill_voids` marks; the run's own metrics have no tables.
+    let dir = tempfile::tempdir().unwrap();
+    let store = run_example(
+        dir.path(),
+        "liquid-void-pit",
+        &[
+            r#"physics.liquid_voids.fill_region={"min":[0.008,0],"max":[0.012,0.006]}"#,
+            concat!(
+                r#"stages=[{"name":"fill","changes":{"solver":{"end_when":"underfill.fill_time"}}},"#,
+                r#"{"name":"after","changes":{"solver":{"end_time":0.09},"physics":{"liquid_voids":null}}}]"#
+            ),
+        ],
+    );
+    let o = mpm(
+        &[
+            "render",
+            &store,
+            "--stage",
+            "fill",
+            "--field",
+            "v",
+            "--voids",
+            "underfill_voids",
+            "--out",
+            "fill.png",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(text(&o).contains("1 void marked"), "{}", text(&o));
+}
