@@ -9,6 +9,9 @@ pub struct ProgressReporter {
     bar: Option<ProgressBar>,
     next_line_fraction: f64,
     quiet: bool,
+    /// The end time and start time of the run or stage being reported: a staged run's
+    /// stages each count from 0 to 100%.
+    span: (f64, f64),
 }
 
 impl ProgressReporter {
@@ -28,6 +31,7 @@ impl ProgressReporter {
             bar,
             next_line_fraction: 0.1,
             quiet,
+            span: (f64::NAN, 0.0),
         }
     }
 
@@ -41,7 +45,17 @@ impl ProgressReporter {
 
 impl RunObserver for ProgressReporter {
     fn progress(&mut self, p: &Progress) -> Control {
-        let fraction = (p.time / p.end_time).clamp(0.0, 1.0);
+        if p.end_time != self.span.0 {
+            // A new stage (or the run's first step): count from where its first step began.
+            self.span = (p.end_time, p.time - p.dt);
+            self.next_line_fraction = 0.1;
+        }
+        let (end, start) = self.span;
+        let fraction = if end > start {
+            ((p.time - start) / (end - start)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         if let Some(bar) = &self.bar {
             if p.step.is_multiple_of(16) || fraction >= 1.0 {
                 bar.set_position((fraction * 1000.0) as u64);

@@ -246,3 +246,29 @@ fn stage_problems_are_named_by_their_path() {
         assert!(text(&out).contains(expected), "{stages}: {}", text(&out));
     }
 }
+
+#[test]
+fn progress_lines_count_each_stage_from_0_to_100_percent() {
+    // `mpm run` without a terminal prints a line per tenth of the run; a staged run's
+    // stages each count from 0 to 100% (before, the percentage was the time over the last
+    // end time, so a stage after the first printed at most one line).
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example("underfill-cure-cycles.json");
+    let o = mpm(
+        &["run", scene.to_str().unwrap(), "--out", "out"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let lines: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("progress"))
+        .collect();
+    let stages = 3;
+    assert_eq!(lines.len(), 10 * stages, "{lines:#?}");
+    let full = lines
+        .iter()
+        .filter(|l| l.starts_with("progress 100%"))
+        .count();
+    assert_eq!(full, stages, "{lines:#?}");
+}
