@@ -175,17 +175,17 @@ fn fill_line(stage: &StageSummary) -> Option<String> {
     if let Some(v) = p.get("underfill.voids") {
         parts.push(format!("{v} void(s) at most"));
     }
+    if let Some(a) = p.get("underfill.trapped_air_area") {
+        parts.push(format!("trapped air at most {a:.4e} m²"));
+    }
+    if let Some(v) = p.get("underfill.trapped_air_volume") {
+        parts.push(format!("trapped air at most {v:.4e} m³"));
+    }
     if let Some(v) = p.get("underfill.voids_left") {
         let volume = p.get("underfill.trapped_air_left").copied().unwrap_or(0.0);
         parts.push(format!(
-            "{v} left at its end holding {volume:.4e} m³ of air"
+            "{v} void(s) left at its end holding {volume:.4e} m³ of air"
         ));
-    }
-    if let Some(a) = p.get("underfill.trapped_air_area") {
-        parts.push(format!("trapped air {a:.4e} m²"));
-    }
-    if let Some(v) = p.get("underfill.trapped_air_volume") {
-        parts.push(format!("trapped air {v:.4e} m³"));
     }
     if stage.removed_particles > 0 {
         parts.push(format!(
@@ -275,8 +275,8 @@ mod tests {
         assert_eq!(
             process_report(&m),
             [
-                "fill: fill time 2.500000e-3 s, filled 93.56%, 12 void(s) at most, 7 left at its end \
-              holding 3.0000e-14 m³ of air"
+                "fill: fill time 2.500000e-3 s, filled 93.56%, 12 void(s) at most, 7 void(s) left \
+                 at its end holding 3.0000e-14 m³ of air"
             ]
         );
     }
