@@ -4,19 +4,6 @@
 //! particle) or air. Air regions are what the void tracker labels; the fill region is timed on them.
 
 use crate::voids::AirCells;
-use mpm_core::scene::Side;
-
-/// The domain face on `axis`, the upper one when `upper`.
-pub(crate) fn side_of(axis: usize, upper: bool) -> Side {
-    match (axis, upper) {
-        (0, false) => Side::XMin,
-        (0, true) => Side::XMax,
-        (1, false) => Side::YMin,
-        (1, true) => Side::YMax,
-        (_, false) => Side::ZMin,
-        (_, true) => Side::ZMax,
-    }
-}
 
 /// The grid's cells as air, liquid or closed. `closed` and `vented` are fixed for the run;
 /// `liquid` is set from the particles at each labelling.

@@ -7,7 +7,8 @@
 //! the air left (its cells filled or reached a vent). With a `fill_region` the region's
 //! fill and fill time are recorded too (`crate::particle_fill`).
 
-use crate::particle_cells::{GridCells, side_of};
+use crate::lattice::side_of;
+use crate::particle_cells::GridCells;
 use crate::particle_fill::{FillRegion, FillTimer};
 use crate::voids::VoidTracker;
 use mpm_core::physics::{PhysicsContext, PhysicsLaw, SharedFieldSpec, Stage};
