@@ -377,6 +377,12 @@ pub struct ImplicitSettings {
     /// absent: full gravity from the first step.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gravity_ramp: Option<f64>,
+    /// Keep a step's factored preconditioner for the next step (same unknowns and step)
+    /// and factor afresh only once a Krylov solve needs more than 20 iterations, instead of
+    /// at every step's start: for large 3D static stages, where the factorisation is most of
+    /// a step. Off by default (a run's iterates then depend on the steps before it).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub reuse_preconditioner: bool,
 }
 
 impl Default for ImplicitSettings {
@@ -394,6 +400,7 @@ impl Default for ImplicitSettings {
             max_krylov_iterations: default_krylov_iterations(),
             max_cuts: default_max_cuts(),
             gravity_ramp: None,
+            reuse_preconditioner: false,
         }
     }
 }

@@ -54,6 +54,26 @@ impl NewtonVectors {
     }
 }
 
+/// A factored preconditioner kept from one step for the next (`reuse_preconditioner`),
+/// with the unknowns and step it was factored for: it is used only where they are the
+/// same.
+pub(super) struct CarriedFactor {
+    factor: SparseCholesky,
+    node_of_dof: Vec<u32>,
+    mask: Vec<f64>,
+    dt: f64,
+}
+
+impl CarriedFactor {
+    /// Whether the factor fits this step's unknowns (nodes, fixed components) and step.
+    fn fits<const D: usize>(&self, work: &Workspace<D>, dt: f64) -> bool {
+        // The step to round-off (steps that land on output times differ in the last digits).
+        (self.dt - dt).abs() <= 1e-9 * dt
+            && self.node_of_dof == work.node_of_dof
+            && self.mask == work.mask
+    }
+}
+
 /// How a Newton solve ended.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct NewtonResult {
@@ -165,6 +185,17 @@ where
         .max(floor);
     let mut energy0 = 0.0;
     let mut factored: Option<SparseCholesky> = None;
+    // The last step's factor, where it fits: not factored afresh until it goes stale.
+    let mut carried_over = false;
+    if settings.reuse_preconditioner
+        && let Some(carried) = work.carried.take()
+        && carried.fits(work, dt)
+    {
+        factored = Some(carried.factor);
+        carried_over = true;
+        sim.report
+            .record_max("implicit.factored_preconditioner", 1.0);
+    }
     let mut try_factor = true;
     let mut last_krylov = 0u32;
     let mut factored_damping = 0.0f64;
@@ -182,13 +213,14 @@ where
         // differences against the iterate's stress) and made again when it has gone stale
         // (the last Krylov solve needed more than STALE iterations) or the damping changed;
         // Jacobi once it is too large.
-        let stale = iteration == 0 || last_krylov > STALE || damping != factored_damping;
+        let stale =
+            (iteration == 0 && !carried_over) || last_krylov > STALE || damping != factored_damping;
         if try_factor && stale {
             factored_damping = damping;
             let fresh = super::preconditioner::factor(sim, work, inertia, dt, damping);
             result.factorisations += u32::from(fresh.is_some());
             factored = fresh.or(factored);
-            if iteration == 0 {
+            if iteration == 0 && !carried_over {
                 try_factor = factored.is_some();
                 if try_factor {
                     sim.report
@@ -368,5 +400,15 @@ where
         )
         .0;
     result.last = Some(eval);
+    if settings.reuse_preconditioner
+        && let Some(factor) = factored
+    {
+        work.carried = Some(CarriedFactor {
+            factor,
+            node_of_dof: work.node_of_dof.clone(),
+            mask: work.mask.clone(),
+            dt,
+        });
+    }
     result
 }

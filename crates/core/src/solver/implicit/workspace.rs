@@ -170,6 +170,8 @@ pub(super) struct Workspace<const D: usize> {
     pub derivative_scratch: crate::solver::stress_derivative::DerivativeScratch<D>,
     /// F-bar's patches and averaged volume changes (only with `solver.anti_locking: fbar`).
     pub fbar: Option<super::fbar::PatchAverage>,
+    /// The last step's factored preconditioner (`reuse_preconditioner`).
+    pub carried: Option<super::newton::CarriedFactor>,
 }
 
 impl<const D: usize> Workspace<D> {
