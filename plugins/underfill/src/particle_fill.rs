@@ -127,10 +127,11 @@ impl FillTimer {
         time: f64,
         report: &mut PhysicsReport,
     ) {
-        let (mut open, mut liquid, mut vented) = (0usize, 0usize, 0usize);
+        // Closed cells stay closed, so every cell kept is open.
+        let open = self.cells.len();
+        let (mut liquid, mut vented) = (0usize, 0usize);
         for &c in &self.cells {
             let c = c as usize;
-            open += 1;
             if grid.liquid[c] {
                 liquid += 1;
             } else if tracker.vented_air(c) {

@@ -4,7 +4,10 @@
 
 use crate::common;
 
-use common::{PIT_3D, invalid_example, load_example, run, run_to_store};
+use common::{
+    PIT_3D, PIT_FILL_REGION, PIT_STAGES_FILL_THEN_REST, invalid_example, load_example, run,
+    run_to_store,
+};
 
 /// The row of void `id` in the `underfill_voids` table, by column name.
 fn void_row(m: &mpm_core::output::Metrics, id: usize) -> impl Fn(&str) -> f64 + '_ {
@@ -128,10 +131,7 @@ fn the_pit_as_a_fill_region_is_filled_when_its_air_is_cut_off() {
     // through the open top until the slab closes over it, so the fill time is the void's
     // closing time (the same labelling), while the pit holds no liquid yet; the water then
     // pours in and the filled fraction reaches 1 when the void is gone (47.7 ms).
-    let m = run(&load_example(
-        "liquid-void-pit.json",
-        &[r#"physics.liquid_voids.fill_region={"min":[0.008,0],"max":[0.012,0.006]}"#],
-    ));
+    let m = run(&load_example("liquid-void-pit.json", &[PIT_FILL_REGION]));
     let void = void_row(&m, 0);
     let fill_time = m.physics["underfill.fill_time"];
     assert_eq!(fill_time, void("closed_time"));
@@ -159,15 +159,13 @@ fn a_stage_that_ends_when_filled_hands_over_at_the_fill_time() {
     // ends at the end of the step at which the pit's air was cut off (its fill time), with
     // a last frame there (not at its end time, 0.08 s), and the second stage takes over from
     // that time to its own end.
-    let fill = r#"physics.liquid_voids.fill_region={"min":[0.008,0],"max":[0.012,0.006]}"#;
-    let stages = concat!(
-        r#"stages=[{"name":"fill","changes":{"solver":{"end_when":"underfill.fill_time"}}},"#,
-        r#"{"name":"after","changes":{"solver":{"end_time":0.09},"physics":{"liquid_voids":null}}}]"#
-    );
     let dir = tempfile::tempdir().unwrap();
     let store = dir.path().join("pit.zarr");
     let m = run_to_store(
-        &load_example("liquid-void-pit.json", &[fill, stages]),
+        &load_example(
+            "liquid-void-pit.json",
+            &[PIT_FILL_REGION, PIT_STAGES_FILL_THEN_REST],
+        ),
         &store,
     );
     let [first, second] = &m.stages[..] else {

@@ -360,13 +360,7 @@ fn render_marks_the_voids_of_the_stage_it_draws() {
     let store = run_example(
         dir.path(),
         "liquid-void-pit",
-        &[
-            r#"physics.liquid_voids.fill_region={"min":[0.008,0],"max":[0.012,0.006]}"#,
-            concat!(
-                r#"stages=[{"name":"fill","changes":{"solver":{"end_when":"underfill.fill_time"}}},"#,
-                r#"{"name":"after","changes":{"solver":{"end_time":0.09},"physics":{"liquid_voids":null}}}]"#
-            ),
-        ],
+        &[PIT_FILL_REGION, PIT_STAGES_FILL_THEN_REST],
     );
     let o = mpm(
         &[

@@ -310,6 +310,17 @@ pub fn comparison(m: &mpm_core::output::Metrics, name: &str) -> (f64, f64) {
     (c.measured, c.reference)
 }
 
+/// Override of examples/liquid-void-pit.json that times the pit's fill (`fill_region`).
+pub const PIT_FILL_REGION: &str =
+    r#"physics.liquid_voids.fill_region={"min":[0.008,0],"max":[0.012,0.006]}"#;
+
+/// Override of examples/liquid-void-pit.json (with [`PIT_FILL_REGION`]) in two stages: the
+/// fill, ended at its fill time by `solver.end_when`, then the rest to 0.09 s.
+pub const PIT_STAGES_FILL_THEN_REST: &str = concat!(
+    r#"stages=[{"name":"fill","changes":{"solver":{"end_when":"underfill.fill_time"}}},"#,
+    r#"{"name":"after","changes":{"solver":{"end_time":0.09},"physics":{"liquid_voids":null}}}]"#
+);
+
 /// Overrides that make examples/liquid-void-pit.json 3D: 4 mm deep between slip walls, the
 /// pit 4 × 6 × 4 mm between two blocks.
 pub const PIT_3D: [&str; 8] = [

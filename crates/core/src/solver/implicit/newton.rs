@@ -186,15 +186,19 @@ where
     let mut energy0 = 0.0;
     let mut factored: Option<SparseCholesky> = None;
     // The last step's factor, where it fits: not factored afresh until it goes stale.
+    // Its layout buffers are kept for the next one either way.
     let mut carried_over = false;
+    let mut layout = (Vec::new(), Vec::new());
     if settings.reuse_preconditioner
         && let Some(carried) = work.carried.take()
-        && carried.fits(work, dt)
     {
-        factored = Some(carried.factor);
-        carried_over = true;
-        sim.report
-            .record_max("implicit.factored_preconditioner", 1.0);
+        if carried.fits(work, dt) {
+            factored = Some(carried.factor);
+            carried_over = true;
+            sim.report
+                .record_max("implicit.factored_preconditioner", 1.0);
+        }
+        layout = (carried.node_of_dof, carried.mask);
     }
     let mut try_factor = true;
     let mut last_krylov = 0u32;
@@ -403,10 +407,13 @@ where
     if settings.reuse_preconditioner
         && let Some(factor) = factored
     {
+        let (mut node_of_dof, mut mask) = layout;
+        node_of_dof.clone_from(&work.node_of_dof);
+        mask.clone_from(&work.mask);
         work.carried = Some(CarriedFactor {
             factor,
-            node_of_dof: work.node_of_dof.clone(),
-            mask: work.mask.clone(),
+            node_of_dof,
+            mask,
             dt,
         });
     }
