@@ -182,6 +182,14 @@ fn implicit_settings_are_checked_with_their_paths() {
     );
     let issues = invalid_example(
         "bimaterial-strip.json",
+        &[r#"solver.mechanics={"implicit":{"factor_precision":"half"}}"#],
+    );
+    assert!(
+        issues.iter().any(|i| i.contains("solver.mechanics")),
+        "{issues:?}"
+    );
+    let issues = invalid_example(
+        "bimaterial-strip.json",
         &[r#"solver.mechanics={"implicit":{"form":"quasi"}}"#],
     );
     assert!(

@@ -342,6 +342,45 @@ fn a_bad_solder_constant_is_refused_at_its_path() {
 }
 
 #[test]
+fn a_single_precision_factor_lands_on_the_same_stresses() {
+    // `factor_precision: single`: the preconditioner is factored in f32, the residual and
+    // the answer stay f64, so only the Krylov iterations may change. Bounds: peaks within
+    // 0.5% (the Newton tolerance sets them, as for the kept preconditioner) and at most a
+    // tenth more Newton iterations per stage.
+    let run = |precision: &str| {
+        let setting = format!("solver.mechanics.implicit.factor_precision={precision}");
+        common::run(&load_example("underfill-cure-cycles.json", &[&setting]))
+    };
+    let (double, single) = (run("double"), run("single"));
+    for (a, b) in double.stages.iter().zip(&single.stages) {
+        assert_eq!(
+            b.physics.get("implicit.single_precision_factors"),
+            Some(&1.0)
+        );
+        assert!(!a.physics.contains_key("implicit.single_precision_factors"));
+        let newton = |s: &mpm_core::output::StageSummary| s.physics["implicit.newton_iterations"];
+        println!(
+            "{}: Newton {} against {}, Krylov {} against {}, fell back {:?}",
+            a.name,
+            newton(b),
+            newton(a),
+            b.physics["implicit.krylov_iterations"],
+            a.physics["implicit.krylov_iterations"],
+            b.physics.get("implicit.single_precision_fell_back")
+        );
+        assert!(newton(b) <= 1.1 * newton(a), "{}", a.name);
+        for (material, peak) in &a.peak_von_mises {
+            let other = b.peak_von_mises[material];
+            assert!(
+                (other / peak - 1.0).abs() < 5e-3,
+                "{} {material}: {other} against {peak}",
+                a.name
+            );
+        }
+    }
+}
+
+#[test]
 fn a_kept_preconditioner_factors_less_and_lands_on_the_same_stresses() {
     // `reuse_preconditioner`: the chain's particles keep their nodes, so each stage factors
     // its preconditioner once and again only when a Krylov solve runs long. Measured: 8 /

@@ -37,9 +37,9 @@ pub use obstacle::{Obstacle, ObstacleShape};
 pub use output::{CheckpointSchedule, FatigueLayer, Output, StopCriteria};
 pub use refinement::{RefinedLevel, Refinement, RegionBox};
 pub use solver_settings::{
-    AntiLocking, EnclosedAirSettings, FreeStrain2d, GridStorage, ImplicitForm, ImplicitSettings,
-    IncompressibleSettings, KernelName, KrylovMethod, Mechanics, Scheme, Solver, TangentMethod,
-    Transfer, ViscousIntegration,
+    AntiLocking, EnclosedAirSettings, FactorPrecision, FreeStrain2d, GridStorage, ImplicitForm,
+    ImplicitSettings, IncompressibleSettings, KernelName, KrylovMethod, Mechanics, Scheme, Solver,
+    TangentMethod, Transfer, ViscousIntegration,
 };
 pub use stages::{FIXED_ACROSS_STAGES, RemoveParticles, StageSpec, ValidatedStage, merge_patch};
 pub use validate::{

@@ -11,9 +11,9 @@ use super::workspace::Workspace;
 use crate::kernels::Kernel;
 use crate::linear_solvers::conjugate_gradient::{self, Work};
 use crate::linear_solvers::gmres::{self, GmresWork};
-use crate::linear_solvers::sparse_cholesky::SparseCholesky;
+use crate::linear_solvers::sparse_cholesky::{Precision, SparseCholesky};
 use crate::material::Material;
-use crate::scene::ImplicitSettings;
+use crate::scene::{FactorPrecision, ImplicitSettings};
 
 /// Vectors of the Newton and Krylov iterations, sized to the unknowns.
 #[derive(Default)]
@@ -201,6 +201,8 @@ where
         layout = (carried.node_of_dof, carried.mask);
     }
     let mut try_factor = true;
+    // Whether the factor in use was made in f32 at this iteration.
+    let mut fresh_single = false;
     let mut last_krylov = 0u32;
     let mut factored_damping = 0.0f64;
     let mut damping = 0.0f64;
@@ -221,8 +223,21 @@ where
             (iteration == 0 && !carried_over) || last_krylov > STALE || damping != factored_damping;
         if try_factor && stale {
             factored_damping = damping;
-            let fresh = super::preconditioner::factor(sim, work, inertia, dt, damping);
+            let precision = match settings.factor_precision {
+                FactorPrecision::Double => Precision::Double,
+                FactorPrecision::Single => Precision::Single,
+            };
+            let fresh = super::preconditioner::factor(sim, work, inertia, dt, damping, precision);
+            if work.pattern.single_failed() {
+                sim.report
+                    .record_max("implicit.single_precision_fell_back", 1.0);
+            }
             result.factorisations += u32::from(fresh.is_some());
+            fresh_single = fresh.as_ref().is_some_and(SparseCholesky::is_single);
+            if fresh_single {
+                sim.report
+                    .record_max("implicit.single_precision_factors", 1.0);
+            }
             factored = fresh.or(factored);
             if iteration == 0 && !carried_over {
                 try_factor = factored.is_some();
@@ -309,6 +324,14 @@ where
         work.inverse_diagonal = inverse_diagonal;
         result.krylov_iterations += solve.iterations;
         last_krylov = solve.iterations;
+        if fresh_single && last_krylov > STALE {
+            // An f32 factor that preconditions worse than a stale one would: too coarse for
+            // this tangent (soft, damaged particles beside stiff ones); f64 from now on.
+            work.pattern.give_up_single();
+            sim.report
+                .record_max("implicit.single_precision_fell_back", 1.0);
+        }
+        fresh_single = false;
         if direction.iter().any(|v| !v.is_finite()) {
             break;
         }

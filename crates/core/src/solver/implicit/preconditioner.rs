@@ -16,7 +16,7 @@ use super::residual::Inertia;
 use super::tangent_estimate::add_anisotropic_block;
 use super::workspace::{INACTIVE, Workspace};
 use crate::kernels::Kernel;
-use crate::linear_solvers::sparse_cholesky::SparseCholesky;
+use crate::linear_solvers::sparse_cholesky::{Precision, SparseCholesky};
 use crate::material::Material;
 use faer::sparse::Pair;
 
@@ -64,6 +64,7 @@ pub(super) fn factor<const D: usize, K: Kernel>(
     inertia: Option<Inertia>,
     dt: f64,
     damping: f64,
+    precision: Precision,
 ) -> Option<SparseCholesky>
 where
     dyn Material: DimensionDispatch<D>,
@@ -74,8 +75,8 @@ where
     super::residual::linearise_at(sim, work);
     super::tangent_estimate::probe(sim, work, dt);
     let attempt = |sim: &Simulation<D, K>, work: &mut Workspace<D>| {
-        assemble_and_factor(sim, work, inertia, damping, true)
-            .or_else(|| assemble_and_factor(sim, work, inertia, damping, false))
+        assemble_and_factor(sim, work, inertia, damping, true, precision)
+            .or_else(|| assemble_and_factor(sim, work, inertia, damping, false, precision))
     };
     attempt(sim, work).or_else(|| {
         // A whole tangent that is not positive definite (a softening particle): the
@@ -94,6 +95,7 @@ fn assemble_and_factor<const D: usize, K: Kernel>(
     inertia: Option<Inertia>,
     damping: f64,
     geometric: bool,
+    precision: Precision,
 ) -> Option<SparseCholesky>
 where
     dyn Material: DimensionDispatch<D>,
@@ -241,7 +243,9 @@ where
             values.push(1.0);
         }
     }
-    let result = SparseCholesky::factor_with_pattern(n, &pairs, &values, &mut work.pattern).ok();
+    let result =
+        SparseCholesky::factor_with_pattern_in(n, &pairs, &values, &mut work.pattern, precision)
+            .ok();
     work.pairs = pairs;
     work.values = values;
     result
