@@ -342,7 +342,8 @@ pub enum FactorPrecision {
     Double,
     /// f32: half the bytes of the factor; the residual, the Krylov vectors and the answer
     /// stay f64, so only the Krylov iterations can change. f64 takes over for the rest of
-    /// the run if an f32 factorisation fails.
+    /// the run once an f32 factorisation fails or a fresh f32 factor needs more than 20
+    /// Krylov iterations.
     Single,
 }
 
