@@ -150,14 +150,16 @@ fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
 
 /// The whole chain: the cured underfill cracks during the first thermal cycle and the crack
 /// grows every cycle, and each stage's `damage` summary agrees with its store. The section
-/// has two stress raisers, the void the fill trapped and the corner where the bump meets
-/// the die; the first failure is at one of them, and both have cracked by the end of the
-/// second cycle. Which one fails first is close: measured (generalized plane strain, the
-/// cure corrected after conduction) by the void at 5,580 s (x = 497 µm, y = 147 µm),
-/// 227 / 327 / 504 failed particles after the cycles, the bump corner's first 13 in the
-/// second (its largest damage 0.69 after the first); with the cure's predictor alone
-/// (0.02 more cure at the end of the oven) at the bump corner at 4,740 s, 298 / 497 / 645;
-/// with σzz left out (before), by the void at 3,900 s, 37 / 62 / 85.
+/// has two kinds of stress raiser, the voids the fill trapped and the corner where the bump
+/// meets the die; the first failure is at one of them, and both have cracked by the end of
+/// the second cycle. Which one fails first is close. Measured with the mechanical stages on
+/// the linear kernel (stop 79): by the second void, at 4,140 s (x = 408 µm, y = 103 µm,
+/// 23 µm from its centre, under the inclusion's upstream corner), 346 / 421 / 580 failed
+/// particles after the cycles, the bump corner's first 6 in the second (its largest damage
+/// 0.91 after the first). With quadratic B-splines (before): by the first void at 5,580 s
+/// (x = 497 µm, y = 147 µm), 227 / 327 / 504; with the cure's predictor alone (0.02 more
+/// cure at the end of the oven) at the bump corner at 4,740 s, 298 / 497 / 645; with σzz
+/// left out, by the void at 3,900 s, 37 / 62 / 85.
 #[test]
 fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
     let dir = tempfile::tempdir().unwrap();
@@ -194,7 +196,8 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         .unwrap()
         .unwrap();
     let col = |name: &str| columns.iter().position(|c| c == name).unwrap();
-    let void = [rows[0][col("x")], rows[0][col("y")]];
+    let voids: Vec<[f64; 2]> = rows.iter().map(|r| [r[col("x")], r[col("y")]]).collect();
+    let void = voids[0];
     let (first_frame, first) = (0..store.frame_count().unwrap())
         .find_map(|frame| {
             let damage = store.frame("damage", frame).unwrap().1;
@@ -207,9 +210,9 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         })
         .expect("no particle failed in the first cycle");
     // The summary's onset is the step the first of them failed in: between the frame
-    // before and the frame that shows it, one of them, by the void (within 30 µm of its
-    // centre along the gap and 10 µm across it) or within two cells (20 µm) of the corner
-    // where the bump (x ≤ 40 µm) meets the die (y = 150 µm).
+    // before and the frame that shows it, one of them, by a void (within 30 µm of its
+    // centre) or within two cells (20 µm) of the corner where the bump (x ≤ 40 µm) meets
+    // the die (y = 150 µm).
     let figures = |name: &str| {
         stages.iter().find(|s| s["name"] == name).unwrap()["damage"]["underfill"].clone()
     };
@@ -236,10 +239,14 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
     let corner = [40e-6, 150e-6];
     let at_corner =
         |p: [f64; 2]| ((p[0] - corner[0]).powi(2) + (p[1] - corner[1]).powi(2)).sqrt() < 20e-6;
-    let at_void = |p: [f64; 2]| (p[0] - void[0]).abs() < 30e-6 && (p[1] - void[1]).abs() < 10e-6;
+    let by_a_void = |p: [f64; 2]| {
+        voids
+            .iter()
+            .any(|v| ((p[0] - v[0]).powi(2) + (p[1] - v[1]).powi(2)).sqrt() < 30e-6)
+    };
     assert!(
-        at_corner(at) || at_void(at),
-        "onset at {at:?}: neither the bump's corner at {corner:?} nor the void at {void:?}"
+        at_corner(at) || by_a_void(at),
+        "onset at {at:?}: neither the bump's corner at {corner:?} nor a void of {voids:?}"
     );
     // The cracks grow from cycle to cycle.
     let length = |name: &str| figures(name)["crack_length"].as_f64().unwrap();
@@ -257,7 +264,7 @@ fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
         .1;
     let in_store = last.iter().filter(|&&d| d >= 1.0).count() as u64;
     assert_eq!(in_store, per_cycle[0]);
-    // By the end of the first cycle the crack has reached the void: failed particles
+    // By the end of the first cycle the crack has reached the first void: failed particles
     // within 30 µm of its centre along the gap and 10 µm across it.
     let x_end = store
         .frame("x", store.frame_count().unwrap() - 1)
