@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{example, invalid_example, load_example, mpm, run_to_store, text};
+use common::{example, invalid_example, load_example, mpm, run, run_to_store, text};
 use mpm_core::output::Outcome;
 use mpm_io::ResultStore;
 
@@ -300,6 +300,71 @@ fn the_damage_is_the_average_of_the_stored_local_damage() {
         local_peak > 2.0 * peak,
         "the local damage concentrates: {local_peak}"
     );
+}
+
+/// Stop 79: on the linear kernel the chain's interface stresses and its crack onset
+/// converge at 2 cells across the 50 µm layer. The die, layer and substrate faces lie on
+/// cell faces, so each cell holds one material and the strain may jump across an
+/// interface; quadratic B-splines spread the jump over a cell (one velocity field), which
+/// loads the stiff die's first cell and puts the underfill's plastic strain in a band a
+/// cell or two under the die. Measured after the cycles with [`plastic_underfill`] at
+/// 25 / 12.5 / 6.25 µm cells: linear, silicon averaged over 50 µm 64.7 / 65.4 / 67.3 MPa,
+/// underfill 76.0 / 76.1 / 75.6, first failure 5,700 / 5,640 / 5,700 s (one 60 s step
+/// apart); quadratic B-splines, silicon 127.1 / 98.2 / 76.7 MPa, no failure at 25 µm,
+/// then 12,960 and 5,760 s.
+#[test]
+fn on_the_linear_kernel_the_interface_stress_and_the_crack_onset_converge() {
+    let linear = r#"solver.kernel="linear""#;
+    let runs = ["domain.cell_size=2.5e-5", "domain.cell_size=1.25e-5"].map(|cell| {
+        let m = run(&load_example(
+            "underfill-cure-cycles.json",
+            &[&plastic_underfill(), linear, cell],
+        ));
+        assert_eq!(
+            m.outcome,
+            Some(Outcome::Finished),
+            "{cell}: {:?}",
+            m.diagnostic
+        );
+        m.stages.into_iter().find(|s| s.name == "cycles").unwrap()
+    });
+    for material in ["silicon", "substrate", "underfill"] {
+        let [coarse, fine] = [&runs[0], &runs[1]].map(|s| s.averaged_von_mises[material]);
+        println!(
+            "{material}: averaged {:.1} → {:.1} MPa",
+            coarse / 1e6,
+            fine / 1e6
+        );
+        // Measured: +1.1%, −0.3%, +0.1%.
+        assert!(
+            (fine / coarse - 1.0).abs() < 0.03,
+            "{material}: {coarse} → {fine} Pa"
+        );
+    }
+    let onset = runs.each_ref().map(|s| {
+        s.damage["underfill"]
+            .onset
+            .expect("no particle failed in the cycles")
+    });
+    println!(
+        "onsets {:?}",
+        onset.each_ref().map(|o| (o.time, o.position))
+    );
+    // Within one 60 s step, both under the die's face (y from 250 to 300 µm) between the
+    // layer's middle and the die's corner (x = 750 µm).
+    assert!(
+        (onset[0].time - onset[1].time).abs() <= 60.0 + 1e-9,
+        "{} s against {} s",
+        onset[0].time,
+        onset[1].time
+    );
+    for o in &onset {
+        assert!(
+            (0.5e-3..0.76e-3).contains(&o.position[0]) && (2.8e-4..3.0e-4).contains(&o.position[1]),
+            "onset at {:?}",
+            o.position
+        );
+    }
 }
 
 #[test]
