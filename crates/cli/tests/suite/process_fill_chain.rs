@@ -153,13 +153,14 @@ fn a_bump_free_fill_in_the_package_follows_the_plate_law() {
 /// has two kinds of stress raiser, the voids the fill trapped and the corner where the bump
 /// meets the die; the first failure is at one of them, and both have cracked by the end of
 /// the second cycle. Which one fails first is close. Measured with the mechanical stages on
-/// the linear kernel (stop 79): by the second void, at 4,140 s (x = 408 µm, y = 103 µm,
-/// 23 µm from its centre, under the inclusion's upstream corner), 346 / 421 / 580 failed
-/// particles after the cycles, the bump corner's first 6 in the second (its largest damage
-/// 0.91 after the first). With quadratic B-splines (before): by the first void at 5,580 s
-/// (x = 497 µm, y = 147 µm), 227 / 327 / 504; with the cure's predictor alone (0.02 more
-/// cure at the end of the oven) at the bump corner at 4,740 s, 298 / 497 / 645; with σzz
-/// left out, by the void at 3,900 s, 37 / 62 / 85.
+/// the linear kernel with F-bar (stop 79): at the bump corner at 3,900 s (x = 43 µm,
+/// y = 148 µm; 3,840 s at 41, 149 µm with 5 µm cells), 359 / 437 / 559 failed particles
+/// after the cycles. On the linear kernel without F-bar: by the second void at 4,140 s
+/// (x = 408 µm, y = 103 µm, 23 µm from its centre), 346 / 421 / 580. With quadratic
+/// B-splines (before): by the first void at 5,580 s (x = 497 µm, y = 147 µm),
+/// 227 / 327 / 504; with the cure's predictor alone (0.02 more cure at the end of the
+/// oven) at the bump corner at 4,740 s, 298 / 497 / 645; with σzz left out, by the void
+/// at 3,900 s, 37 / 62 / 85.
 #[test]
 fn the_chain_cracks_in_the_first_cycle_at_the_bump_and_by_its_void() {
     let dir = tempfile::tempdir().unwrap();
