@@ -13,7 +13,7 @@
 use super::super::DimensionDispatch;
 use super::super::simulation::Simulation;
 use super::residual::Inertia;
-use super::tangent_estimate::add_anisotropic_block;
+use super::tangent_estimate::{add_anisotropic_block, deviatoric_part, volumetric_part};
 use super::workspace::{INACTIVE, Workspace};
 use crate::kernels::Kernel;
 use crate::linear_solvers::sparse_cholesky::{Precision, SparseCholesky};
@@ -130,8 +130,8 @@ where
         return None;
     }
     let fbar = work.fbar.is_some();
-    // The whole tangent where it was measured (without F-bar), else the isotropic moduli.
-    let anisotropic = !fbar && work.tangent.len() == sim.particles.len();
+    // The whole tangent where it was measured (split with F-bar), else the isotropic moduli.
+    let anisotropic = work.tangent.len() == sim.particles.len();
     let mut patch = std::mem::take(&mut work.patch_gradient);
     let mut block = std::mem::take(&mut work.block);
     block.clear();
@@ -161,7 +161,11 @@ where
                 current = Some(patch_of_p);
                 // The particle keeps its deviatoric stiffness; the volumetric one, κ = λ +
                 // 2μ/D, acts on the patch's mean dilatation (added below).
-                bulk_volume += v * (lambda + 2.0 * mu / D as f64);
+                bulk_volume += v * if anisotropic {
+                    volumetric_part::<D>(&work.tangent[p])
+                } else {
+                    lambda + 2.0 * mu / D as f64
+                };
                 patch_volume += v;
                 lambda = -2.0 * mu / D as f64;
                 for (a, g) in patch.iter_mut().enumerate() {
@@ -172,7 +176,12 @@ where
             let base = p * stencil;
             if anisotropic {
                 let gradient = &work.interp.gradient[base..base + stencil];
-                add_anisotropic_block(&mut block, gradient, &work.tangent[p], v);
+                if fbar {
+                    let deviatoric = deviatoric_part::<D>(&work.tangent[p]);
+                    add_anisotropic_block(&mut block, gradient, &deviatoric, v);
+                } else {
+                    add_anisotropic_block(&mut block, gradient, &work.tangent[p], v);
+                }
                 (lambda, mu) = (0.0, 0.0);
             }
             for a in 0..stencil {
