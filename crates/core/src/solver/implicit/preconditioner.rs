@@ -159,8 +159,9 @@ where
                     (bulk_volume, patch_volume) = (0.0, 0.0);
                 }
                 current = Some(patch_of_p);
-                // The particle keeps its deviatoric stiffness; the volumetric one, κ = λ +
-                // 2μ/D, acts on the patch's mean dilatation (added below).
+                // The particle keeps its deviatoric stiffness; the volumetric one (eᵀCe/D²
+                // of the whole tangent, or κ = λ + 2μ/D) acts on the patch's mean
+                // dilatation (added below).
                 bulk_volume += v * if anisotropic {
                     volumetric_part::<D>(&work.tangent[p])
                 } else {
