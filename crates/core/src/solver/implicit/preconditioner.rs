@@ -177,12 +177,15 @@ where
             let base = p * stencil;
             if anisotropic {
                 let gradient = &work.interp.gradient[base..base + stencil];
-                if fbar {
-                    let deviatoric = deviatoric_part::<D>(&work.tangent[p]);
-                    add_anisotropic_block(&mut block, gradient, &deviatoric, v);
+                // With F-bar the volumetric part went to the patch above.
+                let deviatoric;
+                let tangent = if fbar {
+                    deviatoric = deviatoric_part::<D>(&work.tangent[p]);
+                    &deviatoric
                 } else {
-                    add_anisotropic_block(&mut block, gradient, &work.tangent[p], v);
-                }
+                    &work.tangent[p]
+                };
+                add_anisotropic_block(&mut block, gradient, tangent, v);
                 (lambda, mu) = (0.0, 0.0);
             }
             for a in 0..stencil {
