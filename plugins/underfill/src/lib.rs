@@ -41,6 +41,7 @@ mod particle_cells;
 mod particle_fill;
 mod particle_voids;
 mod pressure_filling;
+mod sessile_drop_reference;
 mod underfill;
 mod viscosity;
 mod voids;
@@ -93,6 +94,7 @@ impl Plugin for UnderfillPlugin {
         references.extend(capillary_references::factories());
         references.extend(meniscus_reference::factories());
         references.extend(capillary_rise_reference::factories());
+        references.extend(sessile_drop_reference::factories());
         references
     }
 }
