@@ -17,12 +17,13 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// A drop at rest on the wall at `floor` along `up`. Error: relative error, at the last
-/// frame, of the liquid's centroid height above the wall (particles weighted by their
-/// volume) against the equilibrium cap's with the particles' total volume. Comparisons:
-/// `centroid_height`, `contact_angle` (degrees: the angle of the cap with the measured
-/// volume and centroid height) and `laplace_pressure` (the mean `pressure` of the particles
-/// in the drop's core, below half the cap's height and within half its base radius of the
-/// centroid across the wall, against σ/R in 2D, 2σ/R in 3D).
+/// frame, of the liquid's centroid height above the wall (its particles weighted by their
+/// volume; solid particles, a held body under the drop, left out) against the equilibrium
+/// cap's with the liquid's total volume. Comparisons: `centroid_height`, `contact_angle`
+/// (degrees: the angle of the cap with the measured volume and centroid height) and
+/// `laplace_pressure` (the mean `pressure` of the particles in the drop's core, below half
+/// the cap's height and within half its base radius of the centroid across the wall,
+/// against σ/R in 2D, 2σ/R in 3D).
 #[derive(Clone, Debug, Deserialize, schemars::JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SessileDropParams {
@@ -102,9 +103,16 @@ impl ReferenceLaw for SessileDrop {
         }
         let p = &self.p;
         let particles = frame.particles;
+        // The liquid's particles only: a held solid under the drop is no part of it.
         let (mut volume, mut moment) = (0.0, 0.0);
         let mut centre = [0.0; 3];
-        for (x, v) in particles.position.iter().zip(&particles.volume0) {
+        let liquid = particles
+            .groups
+            .iter()
+            .filter(|g| g.material.liquid_viscosity().is_some())
+            .flat_map(|g| g.range.clone());
+        for i in liquid {
+            let (x, v) = (&particles.position[i], particles.volume0[i]);
             volume += v;
             moment += v * (x[p.up] - p.floor);
             for (d, c) in centre.iter_mut().enumerate().take(D) {

@@ -205,6 +205,19 @@ fn a_drop_spreads_on_a_wall_to_its_contact_angle() {
             "{angle}°: {pressure} vs {laplace} Pa"
         );
     }
+    // The floor an obstacle box 10 cells deep instead of the domain's wall (the obstacles'
+    // contact angle, which held bodies share): 0.19%, 60.19°, −0.12%.
+    let m = run(&load_example(
+        "sessile-drop.json",
+        &[
+            "domain.min=[0,-0.005]",
+            "domain.walls=[]",
+            r#"obstacles=[{"shape":{"box":{"min":[-0.001,-0.006],"max":[0.041,0.0]}},"condition":"slip","contact_angle":60}]"#,
+        ],
+    ));
+    assert!(m.error.expect("error") < 0.02, "{m:?}");
+    let (measured, _) = comparison(&m, "contact_angle");
+    assert!((measured - 60.0).abs() < 3.0, "obstacle floor: {measured}°");
     let issues = invalid_example("sessile-drop.json", &["reference.contact_angle=180"]);
     assert!(
         issues
