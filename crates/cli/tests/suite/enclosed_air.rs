@@ -136,7 +136,17 @@ fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
     // implies a liquid volume of V_box − V_air·101325/p (measured −2.3% at cfl 0.5, 45.6
     // kPa; −4.2% at cfl 0.1, 41.6 kPa); bound 5%. Boyle amplifies it: the gauge is 10% and
     // 18% under 50.7 kPa.
-    for cfl in ["0.5", "0.1"] {
+    // With implicit viscosity this inverted a particle at 0.16 s, and was refused, until
+    // particles that strayed a hair behind a wall stopped making liquid cells there (stop
+    // 80): measured IMPLICIT_FIGURE.
+    for (cfl, viscosity) in [
+        ("0.5", "explicit"),
+        ("0.1", "explicit"),
+        ("0.5", "implicit"),
+    ] {
+        let mechanics = format!(
+            r#"solver.mechanics={{"incompressible":{{"enclosed_air":{{}},"viscosity":"{viscosity}"}}}}"#
+        );
         let scene = load_example(
             "liquid-inflow-tank.json",
             &[
@@ -144,7 +154,7 @@ fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
                 r#"domain.walls=[{"sides":["x-","x+","y-","y+"],"condition":"slip"}]"#,
                 "bodies[1].shape.inflow.end=0.2",
                 &format!("solver.cfl={cfl}"),
-                r#"solver.mechanics={"incompressible":{"enclosed_air":{}}}"#,
+                &mechanics,
                 r#"output.fields=["x","injected","pressure"]"#,
             ],
         );
@@ -169,10 +179,12 @@ fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
             .collect();
         let gauge = near.iter().sum::<f64>() / near.len() as f64;
         let liquid = 0.02 * 0.01 - 1.2e-4 * 101325.0 / (101325.0 + gauge);
-        eprintln!("cfl {cfl}: air at {gauge} Pa, so the liquid takes {liquid} m² of 1.2e-4");
+        eprintln!(
+            "cfl {cfl}, {viscosity}: air at {gauge} Pa, so the liquid takes {liquid} m² of 1.2e-4"
+        );
         assert!(
             (liquid / 1.2e-4 - 1.0).abs() < 0.05,
-            "cfl {cfl}: air at {gauge} Pa leaves the liquid {liquid} m² of 1.2e-4"
+            "cfl {cfl}, {viscosity}: air at {gauge} Pa leaves the liquid {liquid} m² of 1.2e-4"
         );
     }
 }
@@ -236,21 +248,6 @@ fn enclosed_air_is_refused_where_it_cannot_work() {
         let issues = invalid_example("enclosed-air-u-tube.json", &[&set]);
         assert!(issues.iter().any(|i| i.starts_with(&path)), "{issues:?}");
     }
-    // An inlet into a box walled all round with implicit viscosity (measured: a particle
-    // inverted at 0.16 s; with explicit viscosity it runs, above).
-    let sealed = [
-        "domain.max=[0.02,0.01]",
-        r#"domain.walls=[{"sides":["x-","x+","y-","y+"],"condition":"slip"}]"#,
-        r#"solver.mechanics={"incompressible":{"enclosed_air":{},"viscosity":"implicit"}}"#,
-    ];
-    let issues = invalid_example("liquid-inflow-tank.json", &sealed);
-    assert!(
-        issues.iter().any(
-            |i| i.starts_with("solver.mechanics.incompressible.viscosity")
-                && i.contains("compress")
-        ),
-        "{issues:?}"
-    );
     let issues = invalid_example(
         "enclosed-air-u-tube.json",
         &[&format!("{air}.pressure=1e5")],

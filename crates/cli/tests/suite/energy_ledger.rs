@@ -258,19 +258,21 @@ fn a_meniscus_books_the_wetting_energy_that_draws_it_up() {
 #[test]
 fn the_volume_source_work_is_reported_and_kept_out_of_the_balance() {
     // The inflow tank (an inlet adds water to a tank, the volume source moves misplaced
-    // particle volume back): the balance leaves +1.70 of its largest mechanical energy
+    // particle volume back): the balance left +1.70 of its largest mechanical energy
     // unexplained (7.1e-4 J/m), which had been put down to the source's work. Measured,
     // that work Σ p ΔV is 1.67e-2 J/m, 23 times as much, and 7.8e-2 at `cfl` 0.1: most of
     // what the correction puts in the method takes back within the step, so it is
     // reported in the ledger and kept out of the drift. Bounds: the work within a factor
-    // of two; the drift as it was before the work was measured.
+    // of two; the drift as it was measured (+1.697 before the work was measured; +2.413
+    // since particles that stray a hair behind a wall count in the cell in front of it,
+    // stop 80: the level at rest rose from 7.78 to 7.86 mm, and the balance moved with it).
     let m = run(&load_example("liquid-inflow-tank.json", &[]));
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
     let work = m.energy_ledger.volume_source;
     println!("volume source {work:.4e} J/m, drift {:.4}", m.energy_drift);
     assert!(work > 8e-3 && work < 3.3e-2, "volume source work {work}");
     assert!(
-        (m.energy_drift - 1.697).abs() < 0.01,
+        (m.energy_drift - 2.413).abs() < 0.01,
         "drift {}",
         m.energy_drift
     );

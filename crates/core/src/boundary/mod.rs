@@ -392,20 +392,39 @@ impl<const D: usize> Boundaries<D> {
         }
     }
 
-    /// Whether the grid cell with lowest node `ijk` and centre `centre` lies behind a wall
-    /// surface or inside an obstacle (for the incompressible mode, whose pressure sees
-    /// such cells as solid, not as free surface).
-    pub fn cell_is_solid(&self, ijk: [usize; 3], centre: &Vector<D>) -> bool {
+    /// Whether the grid cell with lowest node `ijk` lies behind a wall surface.
+    pub fn cell_is_behind_wall(&self, ijk: [usize; 3]) -> bool {
         self.walls.iter().any(|w| {
             if w.upper {
                 ijk[w.axis] >= w.surface
             } else {
                 ijk[w.axis] < w.surface
             }
-        }) || self
-            .obstacles
-            .iter()
-            .any(|o| o.solid.distance_and_normal(centre).0 < 0.0)
+        })
+    }
+
+    /// The cell with lowest node `ijk` moved across every wall it lies behind to the first
+    /// cell in front of that wall (itself when it is behind none).
+    pub fn cell_in_front_of_walls(&self, mut ijk: [usize; 3]) -> [usize; 3] {
+        for w in &self.walls {
+            if w.upper {
+                ijk[w.axis] = ijk[w.axis].min(w.surface.saturating_sub(1));
+            } else {
+                ijk[w.axis] = ijk[w.axis].max(w.surface);
+            }
+        }
+        ijk
+    }
+
+    /// Whether the grid cell with lowest node `ijk` and centre `centre` lies behind a wall
+    /// surface or inside an obstacle (for the incompressible mode, whose pressure sees
+    /// such cells as solid, not as free surface).
+    pub fn cell_is_solid(&self, ijk: [usize; 3], centre: &Vector<D>) -> bool {
+        self.cell_is_behind_wall(ijk)
+            || self
+                .obstacles
+                .iter()
+                .any(|o| o.solid.distance_and_normal(centre).0 < 0.0)
     }
 
     /// The grid nodes inside obstacles (at their place at time 0) within `reach` cells of

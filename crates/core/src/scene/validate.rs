@@ -265,22 +265,6 @@ impl Validator {
                      domain.walls, or remove this)",
                 );
             }
-            let inflow = s
-                .bodies
-                .iter()
-                .any(|b| matches!(b.shape, super::Shape::Inflow(_)));
-            if settings.enclosed_air.is_some()
-                && settings.viscosity == super::ViscousIntegration::Implicit
-                && inflow
-                && walled.len() >= 2 * self.dim
-            {
-                self.err(
-                    "solver.mechanics.incompressible.viscosity",
-                    "an inlet filling a box walled on every side compresses the enclosed air, \
-                     which this solver does with explicit viscosity but not yet with implicit \
-                     (measured: a particle inverted at 0.16 s); use \"explicit\", or open a face",
-                );
-            }
         }
         self.check_navier_surfaces(s);
         if s.materials.is_empty() {

@@ -12,7 +12,8 @@
 //!    Σ_c (1/ρ_c) ∫_c ∇N_i·∇N_j p_j = (1/dt) Σ_c ∫_c ∇N_i·v*, with v* the velocity before
 //!    the walls act (the weak form of -(1/dt)∫N_i ∇·v* whose wall term, the flux through
 //!    fixed walls after the step, is zero). A cell is liquid when a
-//!    particle lies in it; a node touching an empty cell is on the free surface (p = 0).
+//!    particle lies in it (a particle a hair behind a wall counts in the cell in front of
+//!    it); a node touching an empty cell is on the free surface (p = 0).
 //!    Cells behind a wall surface or inside an obstacle are neither: walls are a natural
 //!    ∂p/∂n = 0 boundary, open domain faces are free surface (p = 0). Solved by core's Jacobi-preconditioned CG, warm
 //!    started from the last pressure.
@@ -103,6 +104,9 @@ pub(super) struct Incompressible<const D: usize> {
     /// Cells behind a wall or inside an obstacle (at its initial place): neither liquid
     /// nor free surface.
     cell_solid: Vec<bool>,
+    /// The cell whose liquid a particle in each cell counts as: itself, or for a cell
+    /// behind a wall the first cell in front of it.
+    cell_home: Vec<usize>,
     /// Per node: the fraction of its cells that are not solid (the surface energy's
     /// weight; energy_balance.rs).
     open: Vec<f64>,
@@ -171,6 +175,7 @@ impl<const D: usize> Incompressible<D> {
             cell_volume: Vec::new(),
             cell_node: Vec::new(),
             cell_solid: Vec::new(),
+            cell_home: Vec::new(),
             open: Vec::new(),
             free_velocity: Vec::new(),
             inverse_diagonal: Vec::new(),
@@ -262,6 +267,13 @@ impl<const D: usize> Incompressible<D> {
                     centre[d] += 0.5 * grid.dx;
                 }
                 boundaries.cell_is_solid(ijk, &centre)
+            })
+            .collect();
+        self.cell_home = (0..cells)
+            .map(|c| {
+                let ijk =
+                    boundaries.cell_in_front_of_walls(node_coords(&grid.stride, self.cell_node[c]));
+                (0..D).fold(0, |home, d| home * grid.cells[d] + ijk[d])
             })
             .collect();
         self.open = energy_balance::open_fraction(
@@ -510,6 +522,15 @@ impl<const D: usize> Incompressible<D> {
         // Held solids are no liquid: their cells are solid (`Boundaries::cell_is_solid`).
         for i in moving_rows(particles) {
             let (c, _) = cell_of(&sim.grid, &particles.position[i]);
+            // A particle a hair behind a wall (interpolated velocities let one cross by a
+            // fraction of a cell) counts in the cell in front of it. Counted where it was,
+            // it made a liquid cell behind the wall, and free nodes held by that cell
+            // alone: with implicit viscosity, whose projection solves for the change from
+            // the pressure it kept, such a node kept a pressure tens of kPa under the
+            // liquid's around it in a sealed box, and the next step's force from that
+            // inverted a particle (stop 80). Left out, the strays felt no pressure and
+            // were flung off the walls at 0.6 m/s in the inflow tank.
+            let c = self.cell_home[c];
             self.cell_mass[c] += particles.mass[i];
             self.cell_volume[c] += particles.volume0[i];
         }
