@@ -130,15 +130,14 @@ fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
     // air ends in 8e-5 m² at 151,988 Pa absolute (Boyle): 50.7 kPa gauge. Before closed
     // gaps were closed (they were free surface at gauge 0, sinks inside the pressurised
     // liquid) this inverted a particle at 45 ms, and was refused.
-    // The air's pressure is Boyle's at the volume the solver leaves it, and the liquid
-    // takes less room than its particles' volume, as it does in the open tank (level −2.8%
-    // at cfl 0.5, −3.5% at 0.1; liquid_inflow.rs): the pressure at the water's surface
-    // implies a liquid volume of V_box − V_air·101325/p (measured −2.3% at cfl 0.5, 45.6
-    // kPa; −4.2% at cfl 0.1, 41.6 kPa); bound 5%. Boyle amplifies it: the gauge is 10% and
-    // 18% under 50.7 kPa.
-    // With implicit viscosity this inverted a particle at 0.16 s, and was refused, until
-    // particles that strayed a hair behind a wall stopped making liquid cells there (stop
-    // 80): measured IMPLICIT_FIGURE.
+    // The air's pressure is Boyle's at the volume the solver leaves it: the pressure at
+    // the water's surface implies a liquid volume of V_box − V_air·101325/p, against its
+    // particles' 1.2e-4 m² (measured +0.001% at cfl 0.5, 50.66 kPa; −1.7% at cfl 0.1,
+    // 46.8 kPa); bound 5%. Boyle amplifies the volume error about 4.5 times in the gauge.
+    // Before particles a hair behind a wall counted in the cell in front of it (stop 80)
+    // the liquid took 2.3% and 4.2% less room (45.6 and 41.6 kPa), as it does in the open
+    // tank. With implicit viscosity this inverted a particle at 0.16 s, and was refused;
+    // now it reads as the explicit run: +0.0002%, 50.66 kPa.
     for (cfl, viscosity) in [
         ("0.5", "explicit"),
         ("0.1", "explicit"),
