@@ -176,15 +176,25 @@ pub(crate) fn check_plates(
     }
 }
 
-/// The check of a contact angle in (0, 180) degrees and not 90 (`why_not_90` says what 90
-/// would leave to compare).
-pub(crate) fn check_angle(c: &mut Checks, angle: f64, why_not_90: &str) {
-    if !(angle.is_finite() && angle > 0.0 && angle < 180.0) {
+/// The check of a contact angle in (0, 180) degrees; whether it passed.
+pub(crate) fn check_angle_range(c: &mut Checks, angle: f64) -> bool {
+    let inside = angle.is_finite() && angle > 0.0 && angle < 180.0;
+    if !inside {
         c.error(
             "contact_angle",
             "must lie strictly between 0 and 180 degrees",
         );
-    } else if angle.to_radians().cos().abs() < 1e-6 {
+    }
+    inside
+}
+
+/// The check of a contact angle in (0, 180) degrees and not 90 (`why_not_90` says what 90
+/// would leave to compare).
+pub(crate) fn check_angle(c: &mut Checks, angle: f64, why_not_90: &str) {
+    if !check_angle_range(c, angle) {
+        return;
+    }
+    if angle.to_radians().cos().abs() < 1e-6 {
         c.error(
             "contact_angle",
             format!("must differ from 90 degrees: {why_not_90}"),

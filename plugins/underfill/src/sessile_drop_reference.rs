@@ -6,6 +6,7 @@
 //! volume alone, so it measures the shape the contact angle gave without picking a surface
 //! out of the particles.
 
+use crate::meniscus_reference::check_angle_range;
 use mpm_core::output::Comparison;
 use mpm_core::reference::{
     Frame, Reference, ReferenceFactory, ReferenceLaw, TypedReferenceFactory, compare,
@@ -104,7 +105,7 @@ impl ReferenceLaw for SessileDrop {
         let p = &self.p;
         let particles = frame.particles;
         // The liquid's particles only: a held solid under the drop is no part of it.
-        let (mut volume, mut moment) = (0.0, 0.0);
+        let mut volume = 0.0;
         let mut centre = [0.0; 3];
         let liquid = particles
             .groups
@@ -114,7 +115,6 @@ impl ReferenceLaw for SessileDrop {
         for i in liquid {
             let (x, v) = (&particles.position[i], particles.volume0[i]);
             volume += v;
-            moment += v * (x[p.up] - p.floor);
             for (d, c) in centre.iter_mut().enumerate().take(D) {
                 *c += v * x[d];
             }
@@ -122,7 +122,10 @@ impl ReferenceLaw for SessileDrop {
         if volume <= 0.0 {
             return;
         }
-        let height = moment / volume;
+        for c in &mut centre {
+            *c /= volume;
+        }
+        let height = centre[p.up] - p.floor;
         let theta = p.contact_angle.to_radians();
         let (radius, exact) = cap(D, volume, theta);
         self.error = Some((height / exact - 1.0).abs());
@@ -145,7 +148,7 @@ impl ReferenceLaw for SessileDrop {
             let mut across = 0.0;
             for (d, c) in centre.iter().enumerate().take(D) {
                 if d != p.up {
-                    across += (x[d] - c / volume).powi(2);
+                    across += (x[d] - c).powi(2);
                 }
             }
             if x[p.up] - p.floor < 0.5 * cap_height && across.sqrt() < 0.5 * base {
@@ -183,12 +186,7 @@ fn build_sessile_drop(
         c.error("up", format!("must be an axis below {dimension}"));
     }
     c.positive("surface_tension", p.surface_tension);
-    if !(p.contact_angle.is_finite() && p.contact_angle > 0.0 && p.contact_angle < 180.0) {
-        c.error(
-            "contact_angle",
-            "must lie strictly between 0 and 180 degrees",
-        );
-    }
+    check_angle_range(&mut c, p.contact_angle);
     c.finish()?;
     Ok(Arc::new(SessileDrop {
         p,
