@@ -1,6 +1,7 @@
 //! Per-step binning of particles into x-slabs for the coloured parallel P2G, and the
 //! occasional reordering of particles by cell for memory locality.
 
+use super::parallel::SharedSlice;
 use crate::grid::Grid;
 use crate::kernels::Kernel;
 use crate::math::Vector;
@@ -17,7 +18,14 @@ pub(crate) struct SlabBins {
     slab_of: Vec<u32>,
     start: Vec<usize>,
     order: Vec<u32>,
+    /// Per counting chunk of [`BIN_CHUNK`] particles and slab (`chunk · slabs + slab`):
+    /// how many of the chunk's particles the slab holds, then where the chunk writes its
+    /// next one.
+    cursors: Vec<usize>,
 }
+
+/// Particles per task of the binning's parallel counting sort.
+const BIN_CHUNK: usize = 16_384;
 
 impl SlabBins {
     /// Bins for a grid, `width` node planes per slab.
@@ -28,6 +36,7 @@ impl SlabBins {
             slab_of: vec![0; particles],
             start: vec![0; slabs + 1],
             order: vec![0; particles],
+            cursors: Vec::new(),
         }
     }
 
@@ -66,23 +75,12 @@ impl SlabBins {
                 let base = K::weights((x[0] - origin) * inv_dx, half).base.max(0) as usize;
                 *slab = (base / width).min(slabs - 1) as u32;
             });
-        self.start.fill(0);
-        for &s in self.slab_of.iter().filter(|&&s| s != HELD) {
-            self.start[s as usize + 1] += 1;
-        }
-        for s in 0..slabs {
-            self.start[s + 1] += self.start[s];
-        }
-        // Fill using `start` as running cursors, then shift it back.
-        for (p, &s) in self.slab_of.iter().enumerate().filter(|(_, s)| **s != HELD) {
-            let cursor = &mut self.start[s as usize];
-            self.order[*cursor] = p as u32;
-            *cursor += 1;
-        }
-        for s in (1..=slabs).rev() {
-            self.start[s] = self.start[s - 1];
-        }
-        self.start[0] = 0;
+        sort_into_slabs(
+            &self.slab_of,
+            &mut self.start,
+            &mut self.order,
+            &mut self.cursors,
+        );
     }
 
     /// Splits these bins by contact field: `out[f]` gets, slab by slab and in the same
@@ -103,6 +101,57 @@ impl SlabBins {
             }
         }
     }
+}
+
+/// Fills `order` with the particle indices slab by slab, each slab's in index order, and
+/// `start` (one longer than the slab count) with where each slab's run begins; particles
+/// marked [`HELD`] in `slab_of` are left out. A counting sort in parallel over chunks of
+/// particles: each chunk counts its particles per slab, the counts become each chunk's
+/// first place in each slab (slab by slab, chunk by chunk: the order a serial pass gives),
+/// and each chunk then writes its own places. `cursors` is scratch, kept between calls.
+fn sort_into_slabs(
+    slab_of: &[u32],
+    start: &mut [usize],
+    order: &mut [u32],
+    cursors: &mut Vec<usize>,
+) {
+    let slabs = start.len() - 1;
+    let chunks = slab_of.len().div_ceil(BIN_CHUNK);
+    cursors.clear();
+    cursors.resize(chunks * slabs, 0);
+    cursors
+        .par_chunks_mut(slabs)
+        .zip(slab_of.par_chunks(BIN_CHUNK))
+        .for_each(|(count, slab_of)| {
+            for &s in slab_of.iter().filter(|&&s| s != HELD) {
+                count[s as usize] += 1;
+            }
+        });
+    let mut next = 0;
+    for s in 0..slabs {
+        start[s] = next;
+        for c in 0..chunks {
+            let cursor = &mut cursors[c * slabs + s];
+            (*cursor, next) = (next, next + *cursor);
+        }
+    }
+    start[slabs] = next;
+    assert!(next <= order.len(), "more particles binned than places");
+    let order = SharedSlice::new(order);
+    cursors
+        .par_chunks_mut(slabs)
+        .zip(slab_of.par_chunks(BIN_CHUNK))
+        .enumerate()
+        .for_each(|(c, (cursor, slab_of))| {
+            for (k, &s) in slab_of.iter().enumerate().filter(|(_, s)| **s != HELD) {
+                let at = &mut cursor[s as usize];
+                // SAFETY: the cursors of different chunks and slabs run over disjoint
+                // ranges of `order` (their counts' prefix sums), all below `next`, which
+                // is at most its length.
+                unsafe { *order.get(*at) = (c * BIN_CHUNK + k) as u32 };
+                *at += 1;
+            }
+        });
 }
 
 /// Reorders particles within each material group by grid cell. Buffers are reused.
@@ -250,6 +299,38 @@ fn gather_strided(a: &mut [f64], comps: usize, perm: &[u32], visited: &mut [bool
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_parallel_counting_sort_is_the_serial_one() {
+        // Several chunks, a few slabs, some particles held (in no slab).
+        let (n, slabs) = (3 * BIN_CHUNK + 1234, 7);
+        let mut k = 12345u64;
+        let slab_of: Vec<u32> = (0..n)
+            .map(|_| {
+                k = k
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                match (k >> 33) % 9 {
+                    8 => HELD,
+                    s => (s % slabs as u64) as u32,
+                }
+            })
+            .collect();
+        let (mut start, mut order, mut cursors) = (vec![0; slabs + 1], vec![0; n], Vec::new());
+        sort_into_slabs(&slab_of, &mut start, &mut order, &mut cursors);
+        let mut expected = Vec::new();
+        for s in 0..slabs as u32 {
+            assert_eq!(start[s as usize], expected.len());
+            expected.extend((0..n as u32).filter(|&p| slab_of[p as usize] == s));
+        }
+        assert_eq!(start[slabs], expected.len());
+        assert!(expected.len() < n, "some particles are held");
+        assert_eq!(&order[..expected.len()], &expected[..]);
+        // Again with the scratch kept, as every step does.
+        order.fill(0);
+        sort_into_slabs(&slab_of, &mut start, &mut order, &mut cursors);
+        assert_eq!(&order[..expected.len()], &expected[..]);
+    }
 
     #[test]
     fn gather_applies_the_permutation() {
