@@ -5,6 +5,7 @@
 
 mod bench;
 mod bounds;
+mod capillary_filling;
 mod capillary_rise;
 mod cli;
 mod cohesive;

@@ -240,6 +240,15 @@ pub struct IncompressibleSettings {
     /// surface at zero pressure and costs nothing to fill.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub enclosed_air: Option<EnclosedAirSettings>,
+    /// Correct the particles' volume per cell in every step of any liquid scene (the volume
+    /// source: a cell inside the liquid whose particles hold more or less volume than the
+    /// cell gives or takes a share of the difference through the pressure equation). Always
+    /// on with inlets or enclosed air. Without it the projection keeps the grid velocity
+    /// divergence-free but lets the particles drift apart where the liquid is pulled: a
+    /// capillary fill's liquid thinned by up to a quarter and filled at 0.4–0.66 of
+    /// Washburn's rate.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub volume_correction: bool,
 }
 
 /// Settings of `solver.mechanics.incompressible.enclosed_air`: the gas in the pockets the
@@ -272,6 +281,7 @@ impl Default for IncompressibleSettings {
             viscosity: ViscousIntegration::default(),
             outflow: false,
             enclosed_air: None,
+            volume_correction: false,
         }
     }
 }

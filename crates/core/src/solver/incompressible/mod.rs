@@ -590,9 +590,12 @@ impl<const D: usize> Incompressible<D> {
                 self.rhs[base + self.corner_offset[a]] += flux / dt;
             }
         }
-        // Scenes with inlets or enclosed air move misplaced particle volume back (volume_source.rs).
+        // Scenes with inlets or enclosed air, or that ask for it, move misplaced particle
+        // volume back (volume_source.rs).
         let rate = (dt / (sim.settings.cfl.max(SOURCE_CFL) * convective_step(sim))).min(1.0);
-        let source = self.air.is_some() || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
+        let source = self.settings.volume_correction
+            || self.air.is_some()
+            || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
         self.source_solved = source && self.viscosity.is_some();
         if source {
             self.add_volume_source(sim.grid.dx, dt, rate);

@@ -1,8 +1,9 @@
-//! The volume source (scenes with inlets or enclosed air): a cell whose particles' volume
-//! differs from its own gives (or takes) a share of the difference through the pressure
-//! equation's right-hand side. The divergence-free projection alone keeps the grid
-//! velocity's divergence zero, not the particles' volume per cell, so entering particles
-//! pile up at an inlet and the liquid's particles cluster (mod.rs, inflow.rs).
+//! The volume source (scenes with inlets or enclosed air, or `volume_correction`): a cell
+//! whose particles' volume differs from its own gives (or takes) a share of the difference
+//! through the pressure equation's right-hand side. The divergence-free projection alone
+//! keeps the grid velocity's divergence zero, not the particles' volume per cell, so
+//! entering particles pile up at an inlet, the liquid's particles cluster (mod.rs,
+//! inflow.rs), and a liquid pulled by a meniscus thins (a capillary fill).
 //!
 //! The share is per velocity-CFL step (the step the flow alone would take at the scene's
 //! `cfl`, or at `SOURCE_CFL` if that is larger): a shorter step (a capillary or viscous
