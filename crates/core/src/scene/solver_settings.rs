@@ -246,7 +246,8 @@ pub struct IncompressibleSettings {
     /// on with inlets or enclosed air. Without it the projection keeps the grid velocity
     /// divergence-free but lets the particles drift apart where the liquid is pulled: a
     /// capillary fill's liquid thinned by up to a quarter and filled at 0.4–0.66 of
-    /// Washburn's rate.
+    /// Washburn's rate. Off by default: the dam break and the capillary rise read worse
+    /// with it (README, "Capillary filling with liquid particles").
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub volume_correction: bool,
 }

@@ -146,6 +146,8 @@ pub(super) struct Incompressible<const D: usize> {
     /// Per node: its share of the volume this step's source lets the cells gain (or lose),
     /// m³ (m² in 2D), for the source's work (volume_source.rs).
     source_volume: Vec<f64>,
+    /// Scratch for taking sealed regions' net source out (volume_source.rs).
+    balance: volume_source::SourceBalance,
     /// The nodes a pressure inlet holds this step (pressure_inlet.rs), and per node whether
     /// it is one of them.
     held: Vec<usize>,
@@ -165,6 +167,7 @@ impl<const D: usize> Incompressible<D> {
             source_pressure: Vec::new(),
             source_solved: false,
             source_volume: Vec::new(),
+            balance: volume_source::SourceBalance::default(),
             held: Vec::new(),
             is_held: Vec::new(),
             settings,

@@ -50,6 +50,79 @@ impl<const D: usize> Incompressible<D> {
                 }
             }
         }
+        self.balance_sealed_regions(dt);
+    }
+
+    /// Takes each sealed liquid region's net source out of it: a region whose free nodes
+    /// reach no node of fixed pressure (no free surface, no gas pocket), walled all round,
+    /// has a pressure equation that only a right-hand side summing to zero over it can
+    /// satisfy. The projection's own divergence does (no flux through walls); the source's
+    /// need not, and CG then broke down (the capillary rise's pressure solve at 0.53 s with
+    /// `volume_correction`). Such a region keeps the source's redistribution within it.
+    fn balance_sealed_regions(&mut self, dt: f64) {
+        let corners = 1 << D;
+        let nodes = self.source_volume.len();
+        let b = &mut self.balance;
+        b.root.clear();
+        b.root.extend(0..nodes);
+        b.anchored.clear();
+        b.anchored.resize(nodes, false);
+        b.sum.clear();
+        b.sum.resize(nodes, 0.0);
+        b.count.clear();
+        b.count.resize(nodes, 0);
+        let free = |i: usize| self.inverse_diagonal[i] > 0.0;
+        // Free nodes joined through the liquid cells they share.
+        for c in 0..self.cell_volume.len() {
+            if self.cell_volume[c] <= 0.0 {
+                continue;
+            }
+            let base = self.cell_node[c];
+            let mut first = None;
+            for a in 0..corners {
+                let i = base + self.corner_offset[a];
+                if free(i) {
+                    match first {
+                        None => first = Some(i),
+                        Some(f) => b.join(f, i),
+                    }
+                }
+            }
+        }
+        // A region with a liquid cell on a node of fixed pressure is anchored.
+        for c in 0..self.cell_volume.len() {
+            if self.cell_volume[c] <= 0.0 {
+                continue;
+            }
+            let base = self.cell_node[c];
+            let corner = |a: usize| base + self.corner_offset[a];
+            if let Some(f) = (0..corners).map(corner).find(|&i| free(i))
+                && (0..corners).map(corner).any(|i| !free(i))
+            {
+                let r = b.find(f);
+                b.anchored[r] = true;
+            }
+        }
+        for i in (0..nodes).filter(|&i| free(i)) {
+            let r = b.find(i);
+            b.sum[r] += self.source_volume[i];
+            b.count[r] += 1;
+        }
+        for i in (0..nodes).filter(|&i| free(i)) {
+            let r = b.find(i);
+            if b.anchored[r] || b.sum[r] == 0.0 {
+                continue;
+            }
+            let mean = b.sum[r] / f64::from(b.count[r]);
+            self.source_volume[i] -= mean;
+            // The right-hand side took the volume over dt² (the share's 1/(2^D·dt²) on
+            // the rate's volume / 2^D per corner).
+            let rate_to_rhs = 1.0 / (dt * dt);
+            self.rhs[i] -= mean * rate_to_rhs;
+            if self.source_solved {
+                self.source_rhs[i] -= mean * rate_to_rhs;
+            }
+        }
     }
 
     /// The work the pressure does through this step's source: Σ_i p_i ΔV_i over the nodes,
@@ -79,5 +152,62 @@ impl<const D: usize> Incompressible<D> {
         let excess = self.cell_volume[c] - dx.powi(D as i32);
         (self.cell_volume[c] > 0.0 && (inside || excess > 0.0))
             .then_some(VOLUME_CORRECTION * excess)
+    }
+}
+
+/// Scratch of [`Incompressible::balance_sealed_regions`], kept between steps: a union-find
+/// over the nodes, and per region whether it is anchored, its source and its node count.
+#[derive(Default)]
+pub(super) struct SourceBalance {
+    root: Vec<usize>,
+    anchored: Vec<bool>,
+    sum: Vec<f64>,
+    count: Vec<u32>,
+}
+
+impl SourceBalance {
+    /// The region of node `i` (path halving).
+    fn find(&mut self, mut i: usize) -> usize {
+        while self.root[i] != i {
+            self.root[i] = self.root[self.root[i]];
+            i = self.root[i];
+        }
+        i
+    }
+
+    /// Puts nodes `i` and `j` in one region.
+    fn join(&mut self, i: usize, j: usize) {
+        let (a, b) = (self.find(i), self.find(j));
+        if a != b {
+            self.root[a] = b;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::IncompressibleSettings;
+
+    #[test]
+    fn a_sealed_region_keeps_no_net_source_and_an_open_one_keeps_its_own() {
+        // A row of four 2D cells, nodes two high (node = 2·x + y). Cell 0 is liquid with
+        // every corner free: sealed. Cell 3 is liquid with its two right corners of fixed
+        // pressure (a free surface): anchored. Cells 1 and 2 hold no liquid.
+        let mut p = Incompressible::<2>::new(IncompressibleSettings::default());
+        p.corner_offset[..4].copy_from_slice(&[0, 1, 2, 3]);
+        p.cell_node = vec![0, 2, 4, 6];
+        p.cell_volume = vec![1.0, 0.0, 0.0, 1.0];
+        p.inverse_diagonal = vec![1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0];
+        p.source_volume = vec![1.0, 2.0, 3.0, 4.0, 0.0, 0.0, 5.0, 6.0, 0.0, 0.0];
+        let dt = 0.5;
+        p.rhs = p.source_volume.iter().map(|v| v / (dt * dt)).collect();
+        p.balance_sealed_regions(dt);
+        // The sealed cell's source, 10 over four nodes, loses its mean of 2.5.
+        assert_eq!(&p.source_volume[..4], &[-1.5, -0.5, 0.5, 1.5]);
+        assert_eq!(&p.rhs[..4], &[-6.0, -2.0, 2.0, 6.0]);
+        // The anchored cell keeps its source.
+        assert_eq!(&p.source_volume[6..8], &[5.0, 6.0]);
+        assert_eq!(&p.rhs[6..8], &[20.0, 24.0]);
     }
 }
