@@ -107,6 +107,8 @@ pub(super) struct Incompressible<const D: usize> {
     /// The cell whose liquid a particle in each cell counts as: itself, or for a cell
     /// behind a wall the first cell in front of it.
     cell_home: Vec<usize>,
+    /// The cells beside obstacles as the volume source sees them (volume_source.rs).
+    source_cells: volume_source::SourceCells,
     /// Per node: the fraction of its cells that are not solid (the surface energy's
     /// weight; energy_balance.rs).
     open: Vec<f64>,
@@ -179,6 +181,7 @@ impl<const D: usize> Incompressible<D> {
             cell_node: Vec::new(),
             cell_solid: Vec::new(),
             cell_home: Vec::new(),
+            source_cells: volume_source::SourceCells::default(),
             open: Vec::new(),
             free_velocity: Vec::new(),
             inverse_diagonal: Vec::new(),
@@ -272,6 +275,8 @@ impl<const D: usize> Incompressible<D> {
                 boundaries.cell_is_solid(ijk, &centre)
             })
             .collect();
+        self.source_cells =
+            volume_source::SourceCells::new(grid, boundaries, &self.cell_node, &self.cell_solid);
         self.cell_home = (0..cells)
             .map(|c| {
                 let ijk =
