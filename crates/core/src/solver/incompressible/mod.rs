@@ -144,6 +144,9 @@ pub(super) struct Incompressible<const D: usize> {
     /// whether this step has one (see `incremental_pressure`).
     source_rhs: Vec<f64>,
     source_pressure: Vec<f64>,
+    /// Per node, the volume per unit time the last step's source asked for
+    /// (`volume_source.rs`), with implicit viscosity; empty otherwise.
+    last_source_rate: Vec<f64>,
     source_solved: bool,
     /// Per node: its share of the volume this step's source lets the cells gain (or lose),
     /// m³ (m² in 2D), for the source's work (volume_source.rs).
@@ -167,6 +170,7 @@ impl<const D: usize> Incompressible<D> {
             navier: navier_slip::NavierDrag::default(),
             source_rhs: Vec::new(),
             source_pressure: Vec::new(),
+            last_source_rate: Vec::new(),
             source_solved: false,
             source_volume: Vec::new(),
             balance: volume_source::SourceBalance::default(),
@@ -401,6 +405,7 @@ where
     /// a plain projection), as a resumed run does not have it.
     fn save(&mut self, _checkpoint: &mut crate::checkpoint::Checkpoint) {
         self.pressure.iter_mut().for_each(|p| *p = 0.0);
+        self.last_source_rate.clear();
         if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.forget_pressure_force();
         }
@@ -606,7 +611,10 @@ impl<const D: usize> Incompressible<D> {
             || sim.inflow.as_ref().is_some_and(|f| f.has_inlets());
         self.source_solved = source && self.viscosity.is_some();
         if source {
-            self.add_volume_source(sim.grid.dx, dt, rate);
+            self.add_volume_source(&sim.grid, &sim.particles, dt, rate);
+        }
+        if !self.source_solved {
+            self.last_source_rate.clear();
         }
         for (x, free) in self.pressure.iter_mut().zip(&self.inverse_diagonal) {
             if *free <= 0.0 {
