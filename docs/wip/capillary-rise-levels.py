@@ -3,9 +3,10 @@ the column's height between the plates and the pool's level by liquid volume ove
 footprint, the pool's counted two ways, and the rise of each against Jurin's height.
 
 - `sharp`: every particle whose centre lies in a pool stretch counts whole (what the
-  `capillary_rise` reference does);
+  `capillary_rise` reference did before stop 84);
 - `ramp`: a stretch's end inside the domain counts a particle by the share of its width
-  (one particle spacing) inside the stretch; an end at the domain's bound stays sharp.
+  (one particle spacing) inside the stretch; an end at the domain's bound stays sharp
+  (what the reference does since stop 84).
 
 The sharp count jumps by a whole column of particles when the pool's particle lattice
 shears: in a 2 mm stretch one column is an eighth of the count. Stop 83 found the pool's

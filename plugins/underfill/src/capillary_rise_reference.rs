@@ -9,6 +9,11 @@
 //! the highest particle in strips one particle spacing wide. The volume measure counts
 //! particles, so where they crowd (at the contact lines, without a volume source) it reads
 //! a column higher than its surface stands; the two differ by that crowding.
+//!
+//! The pool's volume counts a particle near a stretch's end inside the domain by the share
+//! of its width (one particle spacing) inside the stretch. Counted whole by its centre, a
+//! stretch 2 mm wide gained or lost a whole column of particles (an eighth of its count)
+//! when the pool's lattice sheared, and the pool read 0.2 mm low (stop 83).
 
 use crate::meniscus_reference::{check_angle, check_plates};
 use mpm_core::output::Comparison;
@@ -24,7 +29,8 @@ use std::sync::Arc;
 /// gravity along −`up`, with the pool's level measured over the stretches `pool` along
 /// `across`, away from the plates. Heights are liquid volume over footprint (the particles'
 /// volumes summed in each stretch, over its width times the domain's extent along the other
-/// axes), so the pool and the column must stand on the same flat floor. Error: relative
+/// axes), so the pool and the column must stand on the same flat floor; a stretch's end
+/// inside the domain counts the particles across it by their share inside. Error: relative
 /// error of the rise (column height − pool height) against Jurin's 2σ·cos θ/(ρ·g·w), at
 /// the last frame. Comparisons: `jurin_rise` (that rise) and `surface_rise` (the mean height
 /// of the column's free surface above the pool's, both from the highest particle in each
@@ -66,6 +72,11 @@ struct CapillaryRise {
     strip: f64,
     /// The axis other than `across` and `up` (3D), its domain minimum and strip count.
     depth_axis: Option<(usize, f64, usize)>,
+    /// The domain's bounds along `across`: a pool stretch's end there counts sharply, one
+    /// inside ramps over a particle spacing. Absent from checkpoints written before the
+    /// ramp (stop 84), which count every end sharply as they did.
+    #[serde(default)]
+    bounds: Option<[f64; 2]>,
     error: Option<f64>,
     comparisons: Vec<Comparison>,
 }
@@ -81,6 +92,26 @@ impl CapillaryRise {
 }
 
 impl CapillaryRise {
+    /// The share of a particle centred at `s` (along `across`) that lies in the stretch
+    /// `[from, to]`: 0 or 1 by its centre at an end on the domain's bound, else ramped
+    /// linearly over one particle spacing centred on the end.
+    fn pool_share(&self, s: f64, from: f64, to: f64) -> f64 {
+        let ramp = |inside: f64| (inside / self.strip + 0.5).clamp(0.0, 1.0);
+        let sharp = |inside: f64| if inside > 0.0 { 1.0 } else { 0.0 };
+        let [low, high] = self.bounds.unwrap_or([from, to]);
+        let lower = if from > low {
+            ramp(s - from)
+        } else {
+            sharp(s - from)
+        };
+        let upper = if to < high {
+            ramp(to - s)
+        } else {
+            sharp(to - s)
+        };
+        lower * upper
+    }
+
     /// Mean over the strips of `[from, to]` along `across` (and along the depth axis in 3D)
     /// of the highest particle's position along `up`; `None` without particles there.
     fn surface<const D: usize>(
@@ -127,9 +158,11 @@ impl ReferenceLaw for CapillaryRise {
             if s > p.plates[0] && s < p.plates[1] {
                 column += volume;
             }
-            if p.pool.iter().any(|[from, to]| s > *from && s < *to) {
-                pool += volume;
-            }
+            pool += volume
+                * p.pool
+                    .iter()
+                    .map(|[from, to]| self.pool_share(s, *from, *to))
+                    .sum::<f64>();
         }
         let width: f64 = p.pool.iter().map(|[from, to]| to - from).sum();
         let column = column / ((p.plates[1] - p.plates[0]) * self.depth);
@@ -238,12 +271,14 @@ fn build_capillary_rise(
                 ((extent / strip).ceil() as usize).max(1),
             )
         });
+    let bounds = [scene.domain.min[p.across], scene.domain.max[p.across]];
     Ok(Arc::new(CapillaryRise {
         p,
         gravity,
         depth,
         strip,
         depth_axis,
+        bounds: Some(bounds),
         error: None,
         comparisons: Vec::new(),
     }))
@@ -255,4 +290,63 @@ pub fn factories() -> Vec<Box<dyn ReferenceFactory>> {
         "capillary_rise",
         build_capillary_rise,
     ))]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A reference whose strips are 0.25 mm wide in a domain 0–37 mm along `across`.
+    fn reference() -> CapillaryRise {
+        CapillaryRise {
+            p: CapillaryRiseParams {
+                plates: [0.017, 0.02],
+                pool: vec![[0.0, 0.002], [0.035, 0.037]],
+                across: 0,
+                up: 1,
+                surface_tension: 0.07,
+                contact_angle: 30.0,
+                density: 1000.0,
+            },
+            gravity: 9.81,
+            depth: 1.0,
+            strip: 2.5e-4,
+            depth_axis: None,
+            bounds: Some([0.0, 0.037]),
+            error: None,
+            comparisons: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_stretch_counts_a_shifted_lattice_by_its_width() {
+        // Columns of particles one strip apart, shifted by any fraction of a strip: the
+        // stretch [1 mm, 2 mm] inside the domain is 4 strips wide. Counted whole by their
+        // centres it held 3 columns where two sat on its ends and 4 otherwise; a sheared
+        // lattice has no single spacing, and it jumped by whole columns. By shares, 4 to
+        // round-off at every shift.
+        let r = reference();
+        for k in 0..10 {
+            let shift = f64::from(k) * 0.1 * r.strip;
+            let count: f64 = (0..200)
+                .map(|i| r.pool_share(shift + f64::from(i) * r.strip, 0.001, 0.002))
+                .sum();
+            assert!((count - 4.0).abs() < 1e-9, "shift {shift}: {count}");
+        }
+    }
+
+    #[test]
+    fn an_end_on_the_domains_bound_counts_whole() {
+        let r = reference();
+        assert_eq!(r.pool_share(1e-5, 0.0, 0.002), 1.0);
+        assert_eq!(r.pool_share(0.03699, 0.035, 0.037), 1.0);
+        assert_eq!(r.pool_share(0.002, 0.0, 0.002), 0.5);
+        // A checkpoint from before the ramp counts every end whole.
+        let old = CapillaryRise {
+            bounds: None,
+            ..reference()
+        };
+        assert_eq!(old.pool_share(0.00199, 0.0, 0.002), 1.0);
+        assert_eq!(old.pool_share(0.00201, 0.0, 0.002), 0.0);
+    }
 }

