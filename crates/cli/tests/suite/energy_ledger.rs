@@ -269,14 +269,17 @@ fn the_volume_source_work_is_reported_and_kept_out_of_the_balance() {
     // +4.183 since the source counts particles with tent weights, stop 83: the level at
     // rest 7.78 mm, 333 steps instead of 367, and more of the gain unexplained, an open
     // item of issue 19; the source's work 8.02e-3 J/m, half what it was, so the work's
-    // bounds are a factor of two about that since stop 84, where they were about 1.67e-2).
+    // bounds are a factor of two about that since stop 84, where they were about 1.67e-2;
+    // +2.949 since particles without mass no longer count in G2P's statistics, stop 85:
+    // their spurious speeds had shortened some steps, 335 steps instead of 333, level at
+    // rest 7.66 mm, the source's work 9.27e-3 J/m).
     let m = run(&load_example("liquid-inflow-tank.json", &[]));
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
     let work = m.energy_ledger.volume_source;
     println!("volume source {work:.4e} J/m, drift {:.4}", m.energy_drift);
     assert!(work > 4e-3 && work < 1.6e-2, "volume source work {work}");
     assert!(
-        (m.energy_drift - 4.183).abs() < 0.01,
+        (m.energy_drift - 2.949).abs() < 0.01,
         "drift {}",
         m.energy_drift
     );

@@ -78,6 +78,13 @@ pub(crate) fn grid_to_particle<const D: usize, K: Kernel>(
                 // SAFETY: chunks are disjoint particle ranges; each particle is touched by
                 // exactly one task.
                 let (x, v, f) = unsafe { (position.get(p), velocity.get(p), deformation.get(p)) };
+                // A particle without mass (one waiting at an inlet, or gone through an
+                // outlet: incompressible/inflow.rs) carries nothing: it neither moves nor
+                // counts. Gathered, it read the velocity of nodes that only a far particle's
+                // stencil reaches, and a spurious speed there stopped the run.
+                if mass[p] == 0.0 {
+                    continue;
+                }
                 if held.is_some_and(|groups| crate::particles::held_in(groups, p)) {
                     stats.record(p, mass[p], v, x, f, (&params.gravity, loads.map(|l| &l[p])));
                     continue;

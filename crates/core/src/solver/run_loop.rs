@@ -382,6 +382,7 @@ where
                 break;
             }
             // Land exactly on output times.
+            self.chosen_dt = dt;
             let next_frame_time = (run.start_time + run.frame as f64 * frame_dt).min(end_time);
             if self.time + dt > next_frame_time - eps {
                 dt = next_frame_time - self.time;

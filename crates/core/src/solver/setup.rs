@@ -288,6 +288,7 @@ where
             stage_tag: serde_json::Value::Null,
             name: s.name.clone(),
             time: 0.0,
+            chosen_dt: 0.0,
             steps: 0,
             kinematics: KinematicStats::default(),
             stresses: StressStats::default(),

@@ -78,6 +78,9 @@ pub struct Simulation<const D: usize, K: Kernel> {
     pub(super) scene_json: serde_json::Value,
     pub(super) name: String,
     pub(super) time: f64,
+    /// The step the controller chose for the step being taken, s: longer than the step
+    /// when it was cut short to land on an output time (or the end), else the same.
+    pub(super) chosen_dt: f64,
     pub(super) steps: u64,
     pub(super) kinematics: KinematicStats<D>,
     pub(super) stresses: StressStats,

@@ -351,7 +351,12 @@ where
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);
         if let Some(viscosity) = self.viscosity.as_mut() {
-            viscosity.add_pressure_force(&mut self.free_velocity, &mut self.pressure, dt);
+            viscosity.add_pressure_force(
+                &mut self.free_velocity,
+                &mut self.pressure,
+                dt,
+                sim.chosen_dt,
+            );
         }
         self.capillary_first(sim, dt);
         let navier = sim.boundaries.has_navier().then_some(&mut self.navier);

@@ -293,6 +293,12 @@ pub(super) struct ImplicitViscosity<const D: usize> {
     base: Vec<f64>,
     /// The last step's pressure force per unit mass, -(1/M_i) Σ_c ∫_c N_i ∇p^n, per node.
     pressure_force: Vec<Vector<D>>,
+    /// When this step was cut short to land on an output time and is shorter than the
+    /// last, it over the shorter of the two: the share of the pressure increment kept (see
+    /// `total_pressure`).
+    cut_share: Option<f64>,
+    /// The last step, s (0 before the first and after a checkpoint).
+    last_dt: f64,
     /// The start of the solve, v₀ (one number per node component).
     start: Vec<f64>,
     /// The correction δ.
@@ -368,12 +374,15 @@ impl<const D: usize> ImplicitViscosity<D> {
 
     /// The incremental pressure correction's first half: adds the last pressure force
     /// dt·(-(1/M) ∫N ∇p^n) to `velocity` (the velocity before the walls), and keeps p^n
-    /// while the projection solves for the increment from zero.
+    /// while the projection solves for the increment from zero. `chosen_dt` is the step
+    /// the controller chose, longer than `dt` when this step was cut short to land on an
+    /// output time (see [`ImplicitViscosity::total_pressure`]).
     pub(super) fn add_pressure_force(
         &mut self,
         velocity: &mut [Vector<D>],
         pressure: &mut [f64],
         dt: f64,
+        chosen_dt: f64,
     ) {
         if self.base.len() != pressure.len() {
             self.base = vec![0.0; pressure.len()];
@@ -384,19 +393,37 @@ impl<const D: usize> ImplicitViscosity<D> {
         }
         self.base.copy_from_slice(pressure);
         pressure.fill(0.0);
+        // A sliver: cut short of both the chosen step and the last one (a run whose every
+        // step lands on a frame cuts them all, and none is a sliver).
+        let reference = chosen_dt.min(self.last_dt);
+        self.cut_share = (self.last_dt > 0.0 && reference > dt).then(|| dt / reference);
+        self.last_dt = dt;
     }
 
     /// The total pressure p^n + Δp on the nodes the projection solved for (`free` > 0) and
     /// those `kept` (an enclosed-air pocket's, a pressure inlet's, and with surface tension
     /// the free surface's, where it is σ·κ); 0 on the rest of the free surface.
+    ///
+    /// In a step cut short to land on an output time, and shorter than the step before
+    /// it, Δp counts scaled by that step over the shorter of the chosen and the last one.
+    /// Its part that took away divergence the particles left (cells
+    /// turning liquid, an inlet's rows) grows as 1/dt, and the next, whole step applies
+    /// the total again: the inflow tank kept 2.5 kPa from a step cut to a tenth, and the
+    /// step after it, applying that for ten times as long, inverted a particle. The next
+    /// projection solves for what the scaled increment lacks.
     pub(super) fn total_pressure(
         &self,
         pressure: &mut [f64],
         free: &[f64],
         kept: impl Fn(usize) -> bool,
     ) {
+        let share = self.cut_share.unwrap_or(1.0);
         for (i, ((p, b), f)) in pressure.iter_mut().zip(&self.base).zip(free).enumerate() {
-            *p = if *f > 0.0 || kept(i) { *p + b } else { 0.0 };
+            *p = if *f > 0.0 || kept(i) {
+                *p * share + b
+            } else {
+                0.0
+            };
         }
     }
 
@@ -429,6 +456,8 @@ impl<const D: usize> ImplicitViscosity<D> {
     pub(super) fn forget_pressure_force(&mut self) {
         self.pressure_force.fill(Vector::<D>::zeros());
         self.base.fill(0.0);
+        self.cut_share = None;
+        self.last_dt = 0.0;
     }
 
     /// The particles' coefficients 2 μ_p V_p, μ_p from each liquid at its particles' state
