@@ -271,7 +271,7 @@ fn the_volume_source_work_is_reported_and_kept_out_of_the_balance() {
     // item of issue 19; the source's work 8.02e-3 J/m, half what it was, so the work's
     // bounds are a factor of two about that since stop 84, where they were about 1.67e-2;
     // +2.949 since particles without mass no longer count in G2P's statistics, stop 85:
-    // their spurious speeds had shortened some steps, 335 steps instead of 333, level at
+    // their spurious speeds had set some steps, 335 steps instead of 333, level at
     // rest 7.66 mm, the source's work 9.27e-3 J/m).
     let m = run(&load_example("liquid-inflow-tank.json", &[]));
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);

@@ -406,11 +406,11 @@ impl<const D: usize> ImplicitViscosity<D> {
     ///
     /// In a step cut short to land on an output time, and shorter than the step before
     /// it, Δp counts scaled by that step over the shorter of the chosen and the last one.
-    /// Its part that took away divergence the particles left (cells
-    /// turning liquid, an inlet's rows) grows as 1/dt, and the next, whole step applies
-    /// the total again: the inflow tank kept 2.5 kPa from a step cut to a tenth, and the
-    /// step after it, applying that for ten times as long, inverted a particle. The next
-    /// projection solves for what the scaled increment lacks.
+    /// Its part that took away divergence the particles left (cells turning liquid, an
+    /// inlet's rows) grows as 1/dt, and the next, whole step applies the total again: the
+    /// inflow tank kept 2.5 kPa from a step cut to a tenth, and the step after it,
+    /// applying that for ten times as long, inverted a particle. The next projection
+    /// solves for what the scaled increment lacks.
     pub(super) fn total_pressure(
         &self,
         pressure: &mut [f64],
