@@ -272,15 +272,16 @@ fn the_volume_source_work_is_reported_and_kept_out_of_the_balance() {
     // bounds are a factor of two about that since stop 84, where they were about 1.67e-2;
     // +2.949 since particles without mass no longer count in G2P's statistics, stop 85:
     // their spurious speeds had set some steps, 335 steps instead of 333, level at
-    // rest 7.66 mm, the source's work 9.27e-3 J/m).
+    // rest 7.66 mm, the source's work 9.27e-3 J/m). Until then the drift was pinned as
+    // measured, a regression marker of a balance that did not close. Since stop 86 the
+    // inlet lies in the wall and pushes the liquid in through its face (wall_inlet.rs),
+    // whose pumping work Σ p U a dt is booked, with the kinetic energy its face's speed
+    // gives the nodes: measured −0.086 (−0.141 without that kinetic energy), the
+    // source's work 1.04e-2 J/m; the bound is now a balance check, |drift| < 0.3.
     let m = run(&load_example("liquid-inflow-tank.json", &[]));
     assert_eq!(m.outcome, Some(Outcome::Finished), "{:?}", m.diagnostic);
     let work = m.energy_ledger.volume_source;
     println!("volume source {work:.4e} J/m, drift {:.4}", m.energy_drift);
     assert!(work > 4e-3 && work < 1.6e-2, "volume source work {work}");
-    assert!(
-        (m.energy_drift - 2.949).abs() < 0.01,
-        "drift {}",
-        m.energy_drift
-    );
+    assert!(m.energy_drift.abs() < 0.3, "drift {}", m.energy_drift);
 }

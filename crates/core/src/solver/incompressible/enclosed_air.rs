@@ -437,13 +437,6 @@ impl EnclosedAir {
         self.tie.get(i).is_some_and(|&k| k != NONE)
     }
 
-    /// Calls `f` with every node tied to a pocket this step.
-    pub(super) fn for_each_tied(&self, mut f: impl FnMut(usize)) {
-        for &(i, _) in &self.tied_nodes {
-            f(i);
-        }
-    }
-
     /// The pocket rows of the operator: y[n+k] = Σ_{tied i} y_i + C_k x[n+k].
     pub(super) fn gather(&self, x: &[f64], y: &mut [f64], n: usize) {
         for (k, u) in self.unknowns.iter().enumerate() {

@@ -132,18 +132,25 @@ impl<const D: usize> SurfaceTension<D> {
 }
 
 impl<const D: usize> Incompressible<D> {
-    /// The work done pushing in the particles that entered in this step: Σ p(x_i) V_i
-    /// with this step's (total) pressure, J (J/m in 2D).
-    pub(super) fn pumping_work<K: Kernel>(&self, sim: &Simulation<D, K>) -> f64 {
+    /// The work done pushing in the particles that entered in the step of length `dt`:
+    /// Σ p(x_i) V_i with this step's (total) pressure, J (J/m in 2D); for a rate inlet in
+    /// a wall, the work its face did, Σ p_i U a_i dt (wall_inlet.rs), in their place.
+    pub(super) fn pumping_work<K: Kernel>(&self, sim: &Simulation<D, K>, dt: f64) -> f64 {
         let Some(inflows) = sim.inflow.as_ref() else {
             return 0.0;
         };
-        inflows
+        let walls = self.wall_inlets.as_ref();
+        let particles: f64 = inflows
             .entered()
             .iter()
+            .filter(|&&i| {
+                let plan = inflows.plan_index(sim.particles.id[i]);
+                !plan.is_some_and(|k| walls.is_some_and(|w| w.has_plan(k)))
+            })
             .map(|&i| {
                 self.pressure_at(&sim.grid, &sim.particles.position[i]) * sim.particles.volume0[i]
             })
-            .sum()
+            .sum();
+        particles + walls.map_or(0.0, |w| w.work(&self.pressure, sim.time, dt))
     }
 }

@@ -33,6 +33,10 @@
 //! 3.4% low, 0.4 3.5% low and 0.5 3.5% low, but at 0.4 and 0.5 the full box pushed
 //! particles 0.2 mm through its walls.
 //!
+//! A rate inlet whose face lies on a wall's plane is also a velocity condition on that
+//! wall (wall_inlet.rs): the projection pushes its rate through the face, and the source
+//! only moves what the particles misplace.
+//!
 //! The liquid cannot grow past the volume of the domain's open cells (not behind a wall,
 //! not inside an obstacle): a layer that would take it past that stops the run with a
 //! diagnostic naming the inflow, before the layer enters.
@@ -162,6 +166,21 @@ impl<const D: usize> Inflows<D> {
     /// sheared channel kicked the pressure by twice the inlet's (pressure_inlet.rs).
     pub(super) fn has_inlets(&self) -> bool {
         self.plans.iter().any(|p| p.drive.is_none())
+    }
+
+    /// Every inlet's plan index, layout, and whether it is a pressure inlet.
+    pub(super) fn layouts(&self) -> impl Iterator<Item = (usize, &InflowLayout, bool)> {
+        self.plans
+            .iter()
+            .enumerate()
+            .map(|(k, p)| (k, &p.layout, p.drive.is_some()))
+    }
+
+    /// The index of the plan particle id `id` belongs to.
+    pub(super) fn plan_index(&self, id: u32) -> Option<usize> {
+        self.plans
+            .iter()
+            .position(|p| (p.first_id..p.end_id).contains(&id))
     }
 
     /// The pressure inlets' layouts and states, in the order of the bodies.

@@ -59,6 +59,7 @@ mod projection;
 mod surface_tension;
 mod viscosity;
 mod volume_source;
+mod wall_inlet;
 
 use super::DimensionDispatch;
 use super::grid_update::{GridParams, update_grid};
@@ -157,6 +158,9 @@ pub(super) struct Incompressible<const D: usize> {
     /// it is one of them.
     held: Vec<usize>,
     is_held: Vec<bool>,
+    /// The rate inlets whose face lies on a wall plane (wall_inlet.rs), found with the
+    /// workspace; `None` without any.
+    wall_inlets: Option<wall_inlet::WallInlets>,
 }
 
 impl<const D: usize> Incompressible<D> {
@@ -176,6 +180,7 @@ impl<const D: usize> Incompressible<D> {
             balance: volume_source::SourceBalance::default(),
             held: Vec::new(),
             is_held: Vec::new(),
+            wall_inlets: None,
             settings,
             stiffness: [[0.0; MAX_CORNERS]; MAX_CORNERS],
             gradient: [[[0.0; MAX_CORNERS]; 3]; MAX_CORNERS],
@@ -208,10 +213,14 @@ impl<const D: usize> Incompressible<D> {
         grid: &crate::grid::Grid<D>,
         boundaries: &crate::boundary::Boundaries<D>,
         groups: &[crate::particles::MaterialGroup],
+        inflows: Option<&inflow::Inflows<D>>,
     ) {
         if self.pressure.len() == grid.len() {
             return;
         }
+        let walls: Vec<_> = boundaries.wall_planes().collect();
+        self.wall_inlets =
+            inflows.and_then(|f| wall_inlet::WallInlets::new(grid, &walls, f.layouts()));
         // Validation lets only one surface tension into a scene (liquids without one
         // count as 0); its liquid's density makes the colour field.
         self.surface = groups
@@ -385,13 +394,18 @@ where
         sim.update_stresses(dt);
         sim.ledger.viscous += energy_balance::viscous_power(&sim.particles) * dt;
         self.pressure_to_particles(sim);
-        sim.ledger.openings += self.pumping_work(sim);
+        sim.ledger.openings += self.pumping_work(sim, dt);
     }
 
     /// The surface energy at the start: the colour of a P2G of the particles' mass.
     /// With implicit viscosity, the particles' viscosities too (they bound the first step).
     fn measure_stored_energy(&mut self, sim: &mut Simulation<D, K>) {
-        self.prepare(&sim.grid, &sim.boundaries, &sim.particles.groups);
+        self.prepare(
+            &sim.grid,
+            &sim.boundaries,
+            &sim.particles.groups,
+            sim.inflow.as_ref(),
+        );
         if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.measure_viscosities(sim);
         }
@@ -511,7 +525,12 @@ impl<const D: usize> Incompressible<D> {
     where
         dyn Material: DimensionDispatch<D>,
     {
-        self.prepare(&sim.grid, &sim.boundaries, &sim.particles.groups);
+        self.prepare(
+            &sim.grid,
+            &sim.boundaries,
+            &sim.particles.groups,
+            sim.inflow.as_ref(),
+        );
         let params = GridParams {
             dt,
             forces: true,
@@ -522,7 +541,22 @@ impl<const D: usize> Incompressible<D> {
         sim.boundaries.fold_stick_walls(&mut sim.grid);
         update_grid(&mut sim.grid, &Boundaries::default(), params);
         self.free_velocity.copy_from_slice(&sim.grid.momentum);
+        // The velocity the projection starts from is `free_velocity`: what the inlets add
+        // here is booked after the projection.
+        self.walls_act(sim, dt);
+    }
+
+    /// Walls and obstacles on the nodal velocity at the end of the step of length `dt`,
+    /// then the wall inlets' entry speed on their nodes (wall_inlet.rs). Returns the
+    /// kinetic energy the inlets' speed added.
+    fn walls_act<K: Kernel>(&self, sim: &mut Simulation<D, K>, dt: f64) -> f64
+    where
+        dyn Material: DimensionDispatch<D>,
+    {
         apply_boundaries(sim, sim.time + dt);
+        self.wall_inlets
+            .as_ref()
+            .map_or(0.0, |inlets| inlets.impose(&mut sim.grid, sim.time, dt))
     }
 }
 

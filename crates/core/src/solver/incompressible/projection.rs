@@ -6,8 +6,8 @@
 use super::pressure::report_solve;
 use super::volume_source::{SOURCE_CFL, VOLUME_CORRECTION};
 use super::{
-    AIR_POCKETS, AIR_PRESSURE, CLOSED_GAPS, Incompressible, apply_boundaries, cell_of,
-    convective_step, extrapolate, moving_rows, pressure_inlet,
+    AIR_POCKETS, AIR_PRESSURE, CLOSED_GAPS, Incompressible, cell_of, convective_step, extrapolate,
+    moving_rows, pressure_inlet,
 };
 use crate::kernels::Kernel;
 use crate::material::Material;
@@ -98,6 +98,10 @@ impl<const D: usize> Incompressible<D> {
                 self.rhs[base + self.corner_offset[a]] += flux / dt;
             }
         }
+        // A rate inlet in a wall pushes its rate through its face (wall_inlet.rs).
+        if let Some(inlets) = &self.wall_inlets {
+            inlets.add_flux(sim.time, dt, &mut self.rhs);
+        }
         // Scenes with inlets or enclosed air, or that ask for it, move misplaced particle
         // volume back (volume_source.rs).
         let rate = (dt / (sim.settings.cfl.max(SOURCE_CFL) * convective_step(sim))).min(1.0);
@@ -119,13 +123,19 @@ impl<const D: usize> Incompressible<D> {
         self.surface_pressure(sim);
         if let Some(surface) = &mut self.surface {
             sim.surface_energy = surface.energy(&sim.grid, &self.open);
-            // The incremental projection (implicit viscosity) solves for the change from the
-            // total pressure it kept: the free surface's increment is σ·κ less that.
-            if let Some(viscosity) = &self.viscosity {
-                for (i, p) in self.pressure.iter_mut().enumerate() {
-                    if self.inverse_diagonal[i] <= 0.0 && surface.touches_liquid(i) {
-                        *p -= viscosity.last_pressure(i);
-                    }
+        }
+        // The incremental projection (implicit viscosity) solves for the change from the
+        // total pressure it kept: on the free surface the increment is what the surface
+        // asks for (0, or σ·κ with surface tension) less that, enclosed air's nodes
+        // included. A node that was inside the liquid at the last step and is on the
+        // surface now kept its last pressure; with an increment of 0 there (as it was
+        // without surface tension until stop 86) the projection acted as if it still had
+        // it, and the next step, whose kept force said 0, did not: the implicit inflow
+        // tank's surface flickered at a wall and threw particles up it at 0.25 m/s.
+        if let Some(viscosity) = &self.viscosity {
+            for (i, p) in self.pressure.iter_mut().enumerate() {
+                if self.inverse_diagonal[i] <= 0.0 {
+                    *p -= viscosity.last_pressure(i);
                 }
             }
         }
@@ -161,17 +171,6 @@ impl<const D: usize> Incompressible<D> {
             );
             for v in self.solve_vectors() {
                 v.resize(n + air.unknowns(), 0.0);
-            }
-            // The incremental projection (implicit viscosity) keeps a pocket's last total
-            // pressure in its nodes: their increment is the new total less that.
-            // (A pocket's surface nodes had it taken off with the surface tension's, above.)
-            if let Some(viscosity) = &self.viscosity {
-                let surface = self.surface.as_ref();
-                air.for_each_tied(|i| {
-                    if !surface.is_some_and(|s| s.touches_liquid(i)) {
-                        self.pressure[i] -= viscosity.last_pressure(i);
-                    }
-                });
             }
             let (cell_volume, cell_mass) = (&self.cell_volume, &self.cell_mass);
             air.fill_rows(
@@ -249,7 +248,7 @@ impl<const D: usize> Incompressible<D> {
                 *v += self.correction[i];
             }
         }
-        apply_boundaries(sim, sim.time + dt);
+        sim.ledger.openings += self.walls_act(sim, dt);
     }
 
     /// With implicit viscosity the projection solved for the pressure increment: adds the
