@@ -98,10 +98,6 @@ impl<const D: usize> Incompressible<D> {
                 self.rhs[base + self.corner_offset[a]] += flux / dt;
             }
         }
-        // A rate inlet in a wall pushes its rate through its face (wall_inlet.rs).
-        if let Some(inlets) = &self.wall_inlets {
-            inlets.add_flux(sim.time, dt, &mut self.rhs);
-        }
         // Scenes with inlets or enclosed air, or that ask for it, move misplaced particle
         // volume back (volume_source.rs).
         let rate = (dt / (sim.settings.cfl.max(SOURCE_CFL) * convective_step(sim))).min(1.0);
@@ -114,6 +110,15 @@ impl<const D: usize> Incompressible<D> {
         }
         if !self.source_solved {
             self.last_source_rate.clear();
+        }
+        // A rate inlet in a wall pushes its rate through its face (wall_inlet.rs), where
+        // the liquid before it is not sealed (the source's balance found the regions; a
+        // face node on the free surface is open).
+        if let Some(inlets) = &mut self.wall_inlets {
+            let (balance, free) = (&mut self.balance, &self.inverse_diagonal);
+            inlets.add_flux(sim.time, dt, &mut self.rhs, |i| {
+                !(free[i] > 0.0 && balance.is_sealed(i))
+            });
         }
         for (x, free) in self.pressure.iter_mut().zip(&self.inverse_diagonal) {
             if *free <= 0.0 {

@@ -386,6 +386,16 @@ impl SourceBalance {
         i
     }
 
+    /// Whether free node `i` lies in a region the last balance found sealed (no node of
+    /// fixed pressure, no gas pocket): no flux can enter it.
+    pub(super) fn is_sealed(&mut self, i: usize) -> bool {
+        if self.root.len() <= i {
+            return false;
+        }
+        let r = self.find(i);
+        !self.anchored[r]
+    }
+
     /// Puts nodes `i` and `j` in one region.
     fn join(&mut self, i: usize, j: usize) {
         let (a, b) = (self.find(i), self.find(j));

@@ -55,6 +55,8 @@ struct WallInlet {
     face: Vec<(usize, f64, f64)>,
     /// The nodes behind the plane on the face nodes' lines, with their weight w_i.
     ghosts: Vec<(usize, f64)>,
+    /// Whether the liquid at the face can take the flow this step (set by `add_flux`).
+    flowing: bool,
 }
 
 /// The scene's rate inlets that lie on wall planes.
@@ -172,6 +174,7 @@ impl WallInlets {
             end: layout.end,
             face,
             ghosts,
+            flowing: true,
         }
     }
 
@@ -191,11 +194,21 @@ impl WallInlets {
     }
 
     /// Adds the inlets' wall term U·a_i/dt to the pressure equation's right-hand side for
-    /// the step [t, t + dt].
-    pub(super) fn add_flux(&self, t: f64, dt: f64, rhs: &mut [f64]) {
-        for inlet in &self.inlets {
+    /// the step [t, t + dt]. An inlet none of whose face nodes is `open` to the flow (the
+    /// liquid before it sealed all round, without a free surface or a gas pocket: its
+    /// pressure equation has no solution with a net inflow) does not flow this step: the
+    /// closed box of the stability suite pushed a particle through its wall.
+    pub(super) fn add_flux(
+        &mut self,
+        t: f64,
+        dt: f64,
+        rhs: &mut [f64],
+        mut open: impl FnMut(usize) -> bool,
+    ) {
+        for inlet in &mut self.inlets {
             let u = Self::speed_over(inlet, t, dt);
-            if u <= 0.0 {
+            inlet.flowing = inlet.face.iter().any(|&(i, _, _)| open(i));
+            if u <= 0.0 || !inlet.flowing {
                 continue;
             }
             for &(i, share, _) in &inlet.face {
@@ -211,7 +224,7 @@ impl WallInlets {
     /// surface, above a pool that covers only part of the inlet).
     pub(super) fn impose<const D: usize>(&self, grid: &mut Grid<D>, t: f64, dt: f64) -> f64 {
         let mut energy = 0.0;
-        for inlet in &self.inlets {
+        for inlet in self.inlets.iter().filter(|w| w.flowing) {
             let u = Self::speed_over(inlet, t, dt);
             if u <= 0.0 {
                 continue;
@@ -235,6 +248,7 @@ impl WallInlets {
     pub(super) fn work(&self, pressure: &[f64], t: f64, dt: f64) -> f64 {
         self.inlets
             .iter()
+            .filter(|w| w.flowing)
             .map(|inlet| {
                 let u = Self::speed_over(inlet, t, dt);
                 inlet
