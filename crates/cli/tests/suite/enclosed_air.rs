@@ -140,8 +140,8 @@ fn an_inlet_filling_a_sealed_box_compresses_its_air_as_boyle_says() {
     // increment of a step cut short to land on a frame is scaled) the implicit run reads
     // 47.93 kPa, the liquid in −1.2% of its particles' volume; the explicit ones 50.00 and
     // 49.75 kPa. Since stop 86 (the inlet in the wall, wall_inlet.rs, and the increment's
-    // surface value less the kept pressure): 50.31 and 49.45 kPa explicit, 49.37 kPa
-    // implicit; the liquid in −0.16%, −0.54% and −0.57%.
+    // surface value less the kept pressure): 49.82 and 50.39 kPa explicit, 50.57 kPa
+    // implicit; the liquid in −0.37%, −0.12% and −0.04%.
     for (cfl, viscosity) in [
         ("0.5", "explicit"),
         ("0.1", "explicit"),
