@@ -113,8 +113,8 @@ fn the_tank_fills_with_implicit_viscosity_too() {
     // example's own 12 frames stop at 0.524 s: after the inflow closes at 0.4 s the
     // pressure that stopped the liquid at the face comes back as the next step's force,
     // the liquid is stirred at 0.2-0.5 m/s, and a particle by the far wall leaves the grid
-    // at x = 20.8 mm (issue 19, open). Left out of
-    // this test until that is mended; it is not a tolerance.
+    // at x = 20.8 mm (issue 19, open). Left out of this test until that is mended; it is
+    // not a tolerance.
     for frames in [20, 100] {
         let (m, fields) = run_fields(
             &load_example(
