@@ -123,15 +123,13 @@ impl<const D: usize> Incompressible<D> {
         viscosity.add_to_kept_pressure(&self.pressure);
         self.pressure_correction(dt, sim.grid.dx);
         extrapolate::extrapolate_correction(&sim.grid, &mut self.correction, &mut self.layer);
-        for ((v, c), layer) in self
-            .free_velocity
-            .iter_mut()
-            .zip(&self.correction)
-            .zip(&self.layer)
-        {
-            if *layer != u8::MAX {
-                *v += c;
-            }
+        if let Some(viscosity) = self.viscosity.as_mut() {
+            viscosity.pre_apply(
+                &mut self.free_velocity,
+                &self.correction,
+                &self.layer,
+                false,
+            );
         }
         self.pressure.fill(0.0);
     }

@@ -359,24 +359,18 @@ where
         sim.grid.clear();
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);
-        if let Some(viscosity) = self.viscosity.as_mut() {
-            viscosity.add_pressure_force(
-                &mut self.free_velocity,
-                &mut self.pressure,
-                dt,
-                sim.chosen_dt,
-            );
-        }
+        self.add_kept_pressure_force(sim, dt);
         self.capillary_first(sim, dt);
         let navier = sim.boundaries.has_navier().then_some(&mut self.navier);
         if let Some(viscosity) = self.viscosity.as_mut() {
             viscosity.solve(sim, &self.settings, dt, &mut self.free_velocity, navier);
+            viscosity.take_back(&mut self.free_velocity);
         } else if let Some(navier) = navier {
             navier.apply_explicit(sim, dt, &mut self.free_velocity);
             sim.ledger.viscous += navier.dissipation(&self.free_velocity, dt);
         }
         self.project(sim, dt);
-        self.incremental_pressure(&sim.grid);
+        self.incremental_pressure();
         inflow::park(sim);
         sim.g2p(dt, true, true, true);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
@@ -426,7 +420,7 @@ where
         self.pressure.iter_mut().for_each(|p| *p = 0.0);
         self.last_source_rate.clear();
         if let Some(viscosity) = self.viscosity.as_mut() {
-            viscosity.forget_pressure_force();
+            viscosity.forget_pressure();
         }
         if let Some(air) = self.air.as_mut() {
             air.forget();

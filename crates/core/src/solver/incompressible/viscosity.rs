@@ -39,11 +39,14 @@
 //! viscosity at the particle's state at the start of the step (the last step's velocity
 //! gradient, temperature and cure), lagged one step: a Picard iteration over steps.
 //!
-//! The projection is incremental (Goda 1979) with implicit viscosity: v̂ includes the last
-//! step's pressure force -dt (1/M_i) Σ_c ∫_c N_i ∇p^n, and the Poisson equation solves
-//! for the increment p^{n+1} - p^n. Without it the split scheme's steady state carries an
-//! error dt·ν·Δ∇p, which is no longer small once ν·dt/dx² ≫ 1 (a Poiseuille channel with
-//! open ends at μ = 100 Pa·s erred 13.6% at 15 steps, 5.3% with the increment).
+//! The projection is incremental (Goda 1979) with implicit viscosity: the viscous solve
+//! sees v̂ plus the last pressure's force -dt (1/M_i) Σ_c ∫_c N_i ∇p^n, taken on this
+//! step's liquid cells, and the Poisson equation solves for the increment from the share
+//! of p^n whose force stays in the velocity after the solve (all of it for a liquid the
+//! viscous step damps, little for water; `Incompressible::add_kept_pressure_force`).
+//! Without it the split scheme's steady state carries an error dt·ν·Δ∇p, which is no
+//! longer small once ν·dt/dx² ≫ 1 (a Poiseuille channel with open ends at μ = 100 Pa·s
+//! erred 13.6% at 15 steps, 5.3% with the increment).
 //!
 //! The projection then takes v₀ + δ on the free components and v̂ on the fixed ones (the
 //! velocity before the walls plus the viscous change δ, zero where fixed), as with
@@ -291,14 +294,18 @@ pub(super) struct ImplicitViscosity<const D: usize> {
     mirrored: bool,
     /// The last step's pressure, p^n (the projection solves for the increment).
     base: Vec<f64>,
-    /// The last step's pressure force per unit mass, -(1/M_i) Σ_c ∫_c N_i ∇p^n, per node.
-    pressure_force: Vec<Vector<D>>,
     /// When this step was cut short to land on an output time and is shorter than the
     /// last, it over the shorter of the two: the share of the pressure increment kept (see
     /// `total_pressure`).
     cut_share: Option<f64>,
     /// The last step, s (0 before the first and after a checkpoint).
     last_dt: f64,
+    /// Per node: the velocity the kept pressure (and the capillary stage's) added before
+    /// the viscous solve, taken back after it (see `take_back`).
+    pre_applied: Vec<Vector<D>>,
+    /// The share of `pre_applied` taken back after the viscous solve (see
+    /// `Incompressible::add_kept_pressure_force`).
+    take_back_share: f64,
     /// The start of the solve, v₀ (one number per node component).
     start: Vec<f64>,
     /// The correction δ.
@@ -372,27 +379,25 @@ impl<const D: usize> ImplicitViscosity<D> {
         }
     }
 
-    /// The incremental pressure correction's first half: adds the last pressure force
-    /// dt·(-(1/M) ∫N ∇p^n) to `velocity` (the velocity before the walls), and keeps p^n
-    /// while the projection solves for the increment from zero. `chosen_dt` is the step
-    /// the controller chose, longer than `dt` when this step was cut short to land on an
-    /// output time (see [`ImplicitViscosity::total_pressure`]).
-    pub(super) fn add_pressure_force(
+    /// The incremental pressure correction's first half, after the kept pressure's force
+    /// joined the velocity (`Incompressible::add_kept_pressure_force`): keeps p^n and the
+    /// share of its force `take_back` takes back, and starts the projection's solve from
+    /// that share of p^n. `chosen_dt` is the step the controller chose, longer than `dt`
+    /// when this step was cut short to land on an output time (see
+    /// [`ImplicitViscosity::total_pressure`]).
+    pub(super) fn keep_base(
         &mut self,
-        velocity: &mut [Vector<D>],
         pressure: &mut [f64],
         dt: f64,
         chosen_dt: f64,
+        take_back: f64,
     ) {
         if self.base.len() != pressure.len() {
             self.base = vec![0.0; pressure.len()];
-            self.pressure_force = vec![Vector::<D>::zeros(); pressure.len()];
-        }
-        for (v, a) in velocity.iter_mut().zip(&self.pressure_force) {
-            *v += a * dt;
         }
         self.base.copy_from_slice(pressure);
-        pressure.fill(0.0);
+        self.take_back_share = take_back;
+        pressure.iter_mut().for_each(|p| *p *= take_back);
         // A sliver: cut short of both the chosen step and the last one (a run whose every
         // step lands on a frame cuts them all, and none is a sliver).
         let reference = chosen_dt.min(self.last_dt);
@@ -400,17 +405,20 @@ impl<const D: usize> ImplicitViscosity<D> {
         self.last_dt = dt;
     }
 
-    /// The total pressure p^n + Δp on the nodes the projection solved for (`free` > 0) and
-    /// those `kept` (an enclosed-air pocket's, a pressure inlet's, and with surface tension
-    /// the free surface's, where it is σ·κ); 0 on the rest of the free surface.
+    /// The total pressure on the nodes the projection solved for (`free` > 0) and those
+    /// `kept` (an enclosed-air pocket's, a pressure inlet's, and with surface tension the
+    /// free surface's, where it is σ·κ); 0 on the rest of the free surface. The projection
+    /// solved for the increment Δp from the share of p^n whose force stayed in the velocity,
+    /// (1 − s)·p^n with s the share taken back: the total is p^n + (Δp − s·p^n), its change
+    /// from p^n in brackets.
     ///
     /// In a step cut short to land on an output time, and shorter than the step before
-    /// it, Δp counts scaled by that step over the shorter of the chosen and the last one.
+    /// it, the change counts scaled by that step over the shorter of the chosen and the last one.
     /// Its part that took away divergence the particles left (cells turning liquid, an
     /// inlet's rows) grows as 1/dt, and the next, whole step applies the total again: the
     /// inflow tank kept 2.5 kPa from a step cut to a tenth, and the step after it,
     /// applying that for ten times as long, inverted a particle. The next projection
-    /// solves for what the scaled increment lacks.
+    /// solves for what the scaled change lacks.
     pub(super) fn total_pressure(
         &self,
         pressure: &mut [f64],
@@ -420,7 +428,7 @@ impl<const D: usize> ImplicitViscosity<D> {
         let share = self.cut_share.unwrap_or(1.0);
         for (i, ((p, b), f)) in pressure.iter_mut().zip(&self.base).zip(free).enumerate() {
             *p = if *f > 0.0 || kept(i) {
-                *p * share + b
+                b + (*p - self.take_back_share * b) * share
             } else {
                 0.0
             };
@@ -435,26 +443,54 @@ impl<const D: usize> ImplicitViscosity<D> {
         }
     }
 
+    /// Adds a velocity change (`change` where `layer` marks it set) to the velocity before
+    /// the viscous solve and to what `take_back` takes back; `fresh` starts anew.
+    pub(super) fn pre_apply(
+        &mut self,
+        velocity: &mut [Vector<D>],
+        change: &[Vector<D>],
+        layer: &[u8],
+        fresh: bool,
+    ) {
+        if fresh || self.pre_applied.len() != velocity.len() {
+            self.pre_applied.clear();
+            self.pre_applied
+                .resize(velocity.len(), Vector::<D>::zeros());
+        }
+        for (((v, pre), c), l) in velocity
+            .iter_mut()
+            .zip(&mut self.pre_applied)
+            .zip(change)
+            .zip(layer)
+        {
+            if *l != u8::MAX {
+                *pre += c;
+                *v += c;
+            }
+        }
+    }
+
+    /// Takes the kept pressure's velocity (and the capillary stage's) back out of
+    /// `velocity` after the viscous solve, which keeps only its own change.
+    pub(super) fn take_back(&self, velocity: &mut [Vector<D>]) {
+        for (v, pre) in velocity.iter_mut().zip(&self.pre_applied) {
+            *v -= pre * self.take_back_share;
+        }
+    }
+
+    /// The part of the last total pressure at node `i` whose force stays in the velocity
+    /// after the viscous solve: the projection solves for the increment from it.
+    pub(super) fn kept_in_velocity(&self, i: usize) -> f64 {
+        (1.0 - self.take_back_share) * self.last_pressure(i)
+    }
+
     /// The last total pressure at node `i` (0 before the first step).
     pub(super) fn last_pressure(&self, i: usize) -> f64 {
         self.base.get(i).copied().unwrap_or(0.0)
     }
 
-    /// Keeps the total pressure's force per unit mass for the next step: `correction`
-    /// where `layer` marks it set, else zero.
-    pub(super) fn keep_pressure_force(&mut self, correction: &[Vector<D>], layer: &[u8]) {
-        for ((a, c), l) in self.pressure_force.iter_mut().zip(correction).zip(layer) {
-            *a = if *l != u8::MAX {
-                *c
-            } else {
-                Vector::<D>::zeros()
-            };
-        }
-    }
-
-    /// Forgets the last pressure force (a checkpoint: the resumed run does not have it).
-    pub(super) fn forget_pressure_force(&mut self) {
-        self.pressure_force.fill(Vector::<D>::zeros());
+    /// Forgets the last pressure (a checkpoint: the resumed run does not have it).
+    pub(super) fn forget_pressure(&mut self) {
         self.base.fill(0.0);
         self.cut_share = None;
         self.last_dt = 0.0;

@@ -167,7 +167,11 @@ impl<const D: usize> Incompressible<D> {
     /// plus the pressure kept from the last step), J (J/m in 2D). The kinetic energy
     /// equation's ∫ p ∇·v dV, which a divergence-free velocity does not have.
     pub(super) fn volume_source_work(&self) -> f64 {
-        let kept = |i: usize| self.viscosity.as_ref().map_or(0.0, |v| v.last_pressure(i));
+        let kept = |i: usize| {
+            self.viscosity
+                .as_ref()
+                .map_or(0.0, |v| v.kept_in_velocity(i))
+        };
         self.source_volume
             .iter()
             .enumerate()
