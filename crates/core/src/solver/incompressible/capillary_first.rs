@@ -14,7 +14,10 @@
 //! liquid at rest), 0 on every other fixed node. Its force −(dt/M_i) Σ_c ∫_c N_i ∇Δp joins
 //! the velocity before the viscous solve, and Δp joins the kept pressure, so the projection
 //! after the solve finds no change at the surface and corrects only the divergence the
-//! viscous step left. The capillary force then goes through the backward-Euler viscous
+//! viscous step left. Like the kept pressure's force, the share of this one that the
+//! viscous step would not damp is taken back after the solve and left to the projection
+//! (`Incompressible::add_kept_pressure_force`; none for the viscous liquids this stage
+//! is for). The capillary force then goes through the backward-Euler viscous
 //! step as any other force does, and the step is bounded by the viscous–capillary time
 //! μdx/σ (surface_tension.rs), no longer by the capillary wave. The surface shape is still
 //! the one at the start of the step (explicit in κ): this is the splitting's order, not

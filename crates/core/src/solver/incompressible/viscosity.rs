@@ -413,8 +413,8 @@ impl<const D: usize> ImplicitViscosity<D> {
     /// from p^n in brackets.
     ///
     /// In a step cut short to land on an output time, and shorter than the step before
-    /// it, the change counts scaled by that step over the shorter of the chosen and the last one.
-    /// Its part that took away divergence the particles left (cells turning liquid, an
+    /// it, the change counts scaled by that step over the shorter of the chosen and the
+    /// last one. Its part that took away divergence the particles left (cells turning liquid, an
     /// inlet's rows) grows as 1/dt, and the next, whole step applies the total again: the
     /// inflow tank kept 2.5 kPa from a step cut to a tenth, and the step after it,
     /// applying that for ten times as long, inverted a particle. The next projection
@@ -470,8 +470,9 @@ impl<const D: usize> ImplicitViscosity<D> {
         }
     }
 
-    /// Takes the kept pressure's velocity (and the capillary stage's) back out of
-    /// `velocity` after the viscous solve, which keeps only its own change.
+    /// Takes the share `take_back_share` of the kept pressure's velocity (and the capillary
+    /// stage's) back out of `velocity` after the viscous solve; the projection solves for
+    /// the increment from the rest (`kept_in_velocity`).
     pub(super) fn take_back(&self, velocity: &mut [Vector<D>]) {
         for (v, pre) in velocity.iter_mut().zip(&self.pre_applied) {
             *v -= pre * self.take_back_share;
