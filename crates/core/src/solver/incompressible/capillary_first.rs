@@ -67,7 +67,6 @@ impl<const D: usize> Incompressible<D> {
         }
         let corners = 1 << D;
         let n = sim.grid.len();
-        self.classify_cells(sim);
         self.pressure.fill(0.0);
         self.surface_pressure(sim);
         let (Some(surface), Some(viscosity), Some(stage)) = (

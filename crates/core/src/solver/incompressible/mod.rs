@@ -359,6 +359,9 @@ where
         sim.grid.clear();
         sim.p2g(dt, true, force);
         self.grid_velocity(sim, dt);
+        // The liquid cells and pressure unknowns of this step, for every stage below: the
+        // particles do not move until G2P.
+        self.classify_cells(sim);
         self.add_kept_pressure_force(sim, dt);
         self.capillary_first(sim, dt);
         let navier = sim.boundaries.has_navier().then_some(&mut self.navier);

@@ -75,7 +75,6 @@ impl<const D: usize> Incompressible<D> {
         dyn Material: DimensionDispatch<D>,
     {
         let corners = 1 << D;
-        self.classify_cells(sim);
         // Right-hand side (1/dt) ∫ ∇N_i · v* over the liquid cells, with v* before the walls
         // act: -(1/dt) ∫ N_i ∇·v* integrated by parts, where the boundary term is the flux
         // through the walls after the step, zero (fixed walls), and N_i = 0 on the free
@@ -289,31 +288,12 @@ impl<const D: usize> Incompressible<D> {
         if self.viscosity.is_none() {
             return;
         }
-        self.classify_cells(sim);
         self.pressure_correction(dt, sim.grid.dx);
         extrapolate::extrapolate_correction(&sim.grid, &mut self.correction, &mut self.layer);
-        let nu = sim
-            .particles
-            .groups
-            .iter()
-            .enumerate()
-            .filter(|(_, g)| !g.held && g.material.liquid_viscosity().is_some())
-            .map(|(k, g)| {
-                self.viscosity
-                    .as_ref()
-                    .map_or(0.0, |v| v.least_viscosity(k))
-                    / g.material.density()
-            })
-            .fold(f64::INFINITY, f64::min);
-        let dx = sim.grid.dx;
-        let stiffest_left = if nu.is_finite() {
-            1.0 / (1.0 + 4.0 * D as f64 * nu * dt / (dx * dx))
-        } else {
-            1.0
-        };
         if let Some(viscosity) = self.viscosity.as_mut() {
+            let share = viscosity.undamped_share(&sim.particles.groups, sim.grid.dx, dt);
             viscosity.pre_apply(&mut self.free_velocity, &self.correction, &self.layer, true);
-            viscosity.keep_base(&mut self.pressure, dt, sim.chosen_dt, stiffest_left);
+            viscosity.keep_base(&mut self.pressure, dt, sim.chosen_dt, share);
         }
     }
 

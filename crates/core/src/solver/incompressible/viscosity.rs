@@ -60,6 +60,7 @@ use crate::kernels::Kernel;
 use crate::linear_solvers::conjugate_gradient::{Solve, Work, solve_preconditioned};
 use crate::material::{MAX_SHARED_READS, Material, ViscosityBatch};
 use crate::math::{Matrix, Vector, trace};
+use crate::particles::MaterialGroup;
 use crate::physics::{Interpolation, PhysicsFault};
 use crate::scene::{Contact, IncompressibleSettings};
 use rayon::prelude::*;
@@ -376,6 +377,25 @@ impl<const D: usize> ImplicitViscosity<D> {
                 },
             );
             self.mirrored = true;
+        }
+    }
+
+    /// The share of a velocity that changes sign from node to node (the stiffest mode)
+    /// that the backward-Euler viscous step of length `dt` leaves, 1/(1 + 4·D·ν·dt/dx²),
+    /// with ν the least kinematic viscosity of the moving liquids at the last solve: the
+    /// share of the kept pressure's force taken back after the solve (see
+    /// `Incompressible::add_kept_pressure_force`). 1 without a liquid.
+    pub(super) fn undamped_share(&self, groups: &[MaterialGroup], dx: f64, dt: f64) -> f64 {
+        let nu = groups
+            .iter()
+            .enumerate()
+            .filter(|(_, g)| !g.held && g.material.liquid_viscosity().is_some())
+            .map(|(k, g)| self.least_viscosity(k) / g.material.density())
+            .fold(f64::INFINITY, f64::min);
+        if nu.is_finite() {
+            1.0 / (1.0 + 4.0 * D as f64 * nu * dt / (dx * dx))
+        } else {
+            1.0
         }
     }
 
