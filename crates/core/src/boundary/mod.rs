@@ -4,10 +4,12 @@
 //! surface's own velocity, through one contact rule (stick, slip, Coulomb friction).
 
 mod cells;
+mod inside;
 mod navier;
 
 use crate::math::Vector;
 use crate::scene::{Contact, ObstacleShape, Wall};
+pub use inside::Inside;
 
 /// Applies a contact rule to a relative velocity `v` at a surface with unit normal `n`
 /// pointing out of the solid.

@@ -52,6 +52,7 @@ mod energy_balance;
 mod extrapolate;
 pub(super) mod inflow;
 mod navier_slip;
+mod obstacle_guard;
 mod outflow;
 mod pressure;
 mod pressure_inlet;
@@ -376,6 +377,7 @@ where
         self.incremental_pressure();
         inflow::park(sim);
         sim.g2p(dt, true, true, true);
+        obstacle_guard::put_back(sim, sim.time + dt);
         // The liquid's volume is kept by the projection, not by F: keep F = I so the
         // particle volume stays its reference volume and F cannot degenerate.
         let particles = &mut sim.particles;
