@@ -31,6 +31,7 @@ mod liquid_inflow;
 mod liquid_voids;
 mod loads;
 mod navier_slip;
+mod obstacle_guard;
 mod phase_change;
 mod pressure_inlet;
 mod process_3d;
