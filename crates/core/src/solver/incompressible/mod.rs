@@ -26,7 +26,8 @@
 //!    (extrapolated, as PIC/FLIP/APIC liquid solvers extrapolate the projected velocity
 //!    into the air), not free fall. Then the walls and obstacles again, so no liquid
 //!    crosses them.
-//! 4. G2P (velocities, positions, velocity gradient); liquid enters through the inlets of
+//! 4. G2P (velocities, positions, velocity gradient); particles that crossed into an
+//!    obstacle or held body are put back on its surface (obstacle_guard.rs); liquid enters through the inlets of
 //!    `inflow` bodies (inflow.rs; at a set pressure, pressure_inlet.rs, whose face nodes
 //!    the Poisson solve of step 2 holds at the reservoir's pressure) and, with `outflow`, leaves through the open domain faces
 //!    (outflow.rs); physics, viscous stress; the nodal pressure is interpolated to the
